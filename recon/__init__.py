@@ -1,0 +1,24 @@
+"""recon: triangle mesh → editable B-rep, by the skeleton decomposition of Wekel & Hellwich.
+
+The public API is declared here once; implementation modules are private.
+"""
+
+from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
+from .skeleton2d import Part2D, SegmentGraph, Shape2D, Skeleton2D, SkeletonResult
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BrepError",
+    "DecompositionError",
+    "ExportError",
+    "FitError",
+    "InputError",
+    "MeshError",
+    "Part2D",
+    "ReconError",
+    "SegmentGraph",
+    "Shape2D",
+    "Skeleton2D",
+    "SkeletonResult",
+]

@@ -1,0 +1,1 @@
+"""Subcommands of the ``recon`` CLI, one module each (see ``recon.cli``)."""

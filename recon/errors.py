@@ -1,0 +1,42 @@
+"""Errors recon raises. One root, a few children (after shapely's ``errors.py``).
+
+The CLI turns any :class:`ReconError` into one line on stderr and exit code 2.
+"""
+
+__all__ = [
+    "ReconError",
+    "InputError",
+    "MeshError",
+    "DecompositionError",
+    "FitError",
+    "BrepError",
+    "ExportError",
+]
+
+
+class ReconError(Exception):
+    """Root of every error recon raises on purpose."""
+
+
+class InputError(ReconError, ValueError):
+    """A file or argument cannot be used: missing, unreadable, empty, wrong format or shape."""
+
+
+class MeshError(InputError):
+    """A mesh that cannot be processed (no triangles, NaN/inf coordinates, ...)."""
+
+
+class DecompositionError(ReconError):
+    """The skeleton or segment decomposition could not be built."""
+
+
+class FitError(ReconError):
+    """A surface or curve fit was misused (an expected failure is a falsy result, not this)."""
+
+
+class BrepError(ReconError):
+    """OpenCascade could not build or repair the B-rep."""
+
+
+class ExportError(ReconError):
+    """A result could not be written."""
