@@ -4,7 +4,17 @@ The public API is declared here once; implementation modules are private.
 """
 
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
-from .skeleton2d import Part2D, SegmentGraph, Shape2D, Skeleton2D, SkeletonResult
+from .skeleton2d import (
+    Part2D,
+    SegmentGraph,
+    Shape2D,
+    Skeleton2D,
+    SkeletonResult,
+    load_shape,
+    plot_decomposition,
+    shape_from_curves,
+    shape_from_mask,
+)
 
 __version__ = "0.1.0"
 
@@ -21,4 +31,8 @@ __all__ = [
     "Shape2D",
     "Skeleton2D",
     "SkeletonResult",
+    "load_shape",
+    "plot_decomposition",
+    "shape_from_curves",
+    "shape_from_mask",
 ]
