@@ -4,6 +4,7 @@ The public API is declared here once; implementation modules are private.
 """
 
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
+from .mesh import CleanReport, Mesh, clean_mesh, input_labels, load_mesh
 from .skeleton2d import (
     Part2D,
     SegmentGraph,
@@ -20,10 +21,12 @@ __version__ = "0.1.0"
 
 __all__ = [
     "BrepError",
+    "CleanReport",
     "DecompositionError",
     "ExportError",
     "FitError",
     "InputError",
+    "Mesh",
     "MeshError",
     "Part2D",
     "ReconError",

@@ -1,0 +1,17 @@
+"""Mesh stage: read a triangle mesh file and clean it once, keeping the map back to the file's triangles."""
+
+from ._clean import DEFAULT_WELD_RELATIVE, clean_mesh, input_labels
+from ._load import SUPPORTED_FORMATS, load_mesh, read_triangles
+from ._types import CleanReport, Mesh, VertexFaces
+
+__all__ = [
+    "CleanReport",
+    "DEFAULT_WELD_RELATIVE",
+    "Mesh",
+    "SUPPORTED_FORMATS",
+    "VertexFaces",
+    "clean_mesh",
+    "input_labels",
+    "load_mesh",
+    "read_triangles",
+]

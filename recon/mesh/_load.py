@@ -1,0 +1,122 @@
+"""Read a mesh file into one triangle list, in the file's own triangle order, then clean it.
+
+trimesh does the parsing, always with ``process=False`` (and ``maintain_order`` for OBJ) so that it never
+merges vertices or reorders triangles behind our back (see shared/STYLE.md).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError, MeshError
+from ._clean import clean_mesh
+from ._types import Mesh
+
+__all__ = ["load_mesh", "read_triangles", "SUPPORTED_FORMATS"]
+
+log = logging.getLogger(__name__)
+
+#: File extension -> trimesh file type.
+SUPPORTED_FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply", ".off": "off", ".3mf": "3mf", ".glb": "glb"}
+
+
+def load_mesh(path: str | os.PathLike, *, weld_tolerance: float | None = None) -> Mesh:
+    """Read a triangle mesh and clean it (see :func:`recon.clean_mesh`).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        STL (binary or ASCII), OBJ, PLY, OFF, 3MF or GLB, chosen by extension.
+    weld_tolerance : float, optional
+        Passed to :func:`recon.clean_mesh`; default ``1e-6`` × the bounding-box diagonal.
+
+    Returns
+    -------
+    Mesh
+        ``source_face`` indexes the file's triangles in the order :func:`read_triangles` gives.
+
+    Raises
+    ------
+    InputError
+        Missing file, unknown extension.
+    MeshError
+        Empty, unreadable or corrupt file; NaN/inf coordinates; no triangles (before or after cleaning).
+    """
+    vertices, faces = read_triangles(path)
+    try:
+        return clean_mesh(vertices, faces, weld_tolerance=weld_tolerance)
+    except MeshError as err:
+        raise MeshError(f"{path}: {err}") from None
+
+
+def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """The raw triangles of a mesh file, unwelded and in file order.
+
+    Polygons are triangulated by trimesh as a fan, in place. A file with several objects (GLB, 3MF,
+    OBJ ``o``/``g``) is concatenated in the order its geometries appear in the file; a geometry placed
+    several times appears once per placement, transformed, in scene-graph order. Point clouds and
+    curves in a scene are skipped.
+
+    Returns
+    -------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if not path.exists():
+        raise InputError(f"{path}: no such file")
+    if not path.is_file():
+        raise InputError(f"{path}: not a file")
+    if ext not in SUPPORTED_FORMATS:
+        raise InputError(
+            f"{path}: unknown mesh format {ext or '(no extension)'!r}; "
+            f"expected one of {', '.join(SUPPORTED_FORMATS)}"
+        )
+    if path.stat().st_size == 0:
+        raise MeshError(f"{path}: file is empty")
+
+    import trimesh
+
+    kwargs = {"process": False}
+    if ext == ".obj":
+        # group_material would regroup triangles by material; maintain_order keeps vertex order.
+        kwargs.update(maintain_order=True, group_material=False, skip_materials=True)
+    try:
+        scene = trimesh.load_scene(path, file_type=SUPPORTED_FORMATS[ext], **kwargs)
+    except Exception as err:  # trimesh raises many kinds (ValueError, KeyError, struct.error, ...)
+        raise MeshError(f"{path}: cannot read as {ext[1:].upper()}: {_one_line(err)}") from err
+
+    vertices, faces, offset = [], [], 0
+    for name, geom in scene.geometry.items():
+        if not isinstance(geom, trimesh.Trimesh):
+            log.warning("%s: skipping %s %r (not a triangle mesh)", path, type(geom).__name__, name)
+            continue
+        if len(geom.faces) == 0:
+            continue
+        nodes = scene.graph.geometry_nodes.get(name) or [None]
+        for node in nodes:
+            v = np.asarray(geom.vertices, dtype=np.float64)
+            f = np.asarray(geom.faces, dtype=np.int64)
+            if node is not None:
+                matrix = np.asarray(scene.graph[node][0], dtype=np.float64)
+                if not np.allclose(matrix, np.eye(4)):
+                    v = v @ matrix[:3, :3].T + matrix[:3, 3]
+                    if np.linalg.det(matrix[:3, :3]) < 0:  # a mirror keeps the outside outside
+                        f = f[:, [0, 2, 1]]
+            vertices.append(v)
+            faces.append(f + offset)
+            offset += len(v)
+    if not faces:
+        raise MeshError(f"{path}: the file has no triangles")
+    log.debug("%s: read %d triangles from %d placements", path, sum(map(len, faces)), len(faces))
+    return np.concatenate(vertices), np.concatenate(faces)
+
+
+def _one_line(err: Exception) -> str:
+    text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= 200 else text[:197] + "..."
