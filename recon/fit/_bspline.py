@@ -1,0 +1,409 @@
+"""Tensor-product B-spline surfaces: evaluation, closest points, and the penalised least-squares fit.
+
+The fit (the approach OCP-NOTES.md measured best; Eilers & Marx' P-splines in two directions):
+
+1. parametrise the patch: orthogonal projection onto its best (PCA) plane when the patch is a height field
+   over it (every normal within 80° of the plane normal); otherwise, given the patch's triangles, a
+   harmonic (Tutte, uniform-weight) map of the disk-shaped patch onto the unit disk;
+2. clamped uniform knots on the parameter box enlarged by 5 % on every side, so the surface extends past
+   the patch boundary and can be trimmed there;
+3. minimise Σ |S(u_i, v_i) − p_i|² + λ (|Δ²_u P|² + 2 |Δ_u Δ_v P|² + |Δ²_v P|²) over the control grid P
+   (second differences of the control points: a discrete thin-plate energy, which also fills the enlarged
+   border and any hole in the data);
+4. parameter correction: move each (u_i, v_i) to the closest point of the new surface and refit (3 rounds);
+5. refine the knots (×1.5 per direction) while the deviation is above tolerance and the data support it.
+
+Patches that wrap around (a full cylinder band, a torus) are not disks and are not height fields: the fit
+reports a falsy result; they are the analytic fitters' job.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import spsolve
+from scipy.spatial import cKDTree
+
+from ..errors import FitError
+from ._noise import estimate_normals
+from ._surfaces import as_points
+from ._types import SurfaceFit, deviation_stats, within_tolerance
+
+__all__ = ["BSplineSurface", "basis_functions", "clamped_knots", "fit_bspline_surface"]
+
+log = logging.getLogger(__name__)
+
+
+def clamped_knots(lo: float, hi: float, intervals: int, degree: int) -> np.ndarray:
+    """Clamped uniform knot vector on [lo, hi] with ``intervals`` spans: (intervals + 2·degree + 1,) float."""
+    inner = np.linspace(lo, hi, intervals + 1)
+    return np.r_[np.full(degree, lo), inner, np.full(degree, hi)]
+
+
+def basis_functions(x: np.ndarray, knots: np.ndarray, degree: int, *, derivative: bool = False):
+    """The degree + 1 non-zero B-spline basis functions at each ``x`` (The NURBS Book, Algorithm A2.2).
+
+    Parameters
+    ----------
+    x : (m,) float
+        Clamped into the knot range.
+    knots : (k,) float
+        Clamped knot vector.
+    degree : int
+    derivative : bool
+        Also return the first derivatives (NURBS Book eq. 2.7, from the degree − 1 functions).
+
+    Returns
+    -------
+    first : (m,) int
+        Index of the first non-zero basis function (span − degree).
+    values : (m, degree + 1) float
+    derivatives : (m, degree + 1) float
+        Only when ``derivative`` is True.
+    """
+    x = np.clip(np.asarray(x, dtype=float), knots[degree], knots[-degree - 1])
+    n_basis = len(knots) - degree - 1
+    span = np.clip(np.searchsorted(knots, x, side="right") - 1, degree, n_basis - 1)
+
+    def values(p):
+        m = len(x)
+        n = np.zeros((m, p + 1))
+        n[:, 0] = 1.0
+        left = np.zeros((m, p + 1))
+        right = np.zeros((m, p + 1))
+        for j in range(1, p + 1):
+            left[:, j] = x - knots[span + 1 - j]
+            right[:, j] = knots[span + j] - x
+            saved = np.zeros(m)
+            for r in range(j):
+                den = right[:, r + 1] + left[:, j - r]
+                temp = np.divide(n[:, r], den, out=np.zeros(m), where=den != 0)
+                n[:, r] = saved + right[:, r + 1] * temp
+                saved = left[:, j - r] * temp
+            n[:, j] = saved
+        return n
+
+    n = values(degree)
+    if not derivative:
+        return span - degree, n
+    lower = values(degree - 1)  # N_{span-degree+1 .. span, degree-1}
+    d = np.zeros_like(n)
+    first = span - degree
+    for j in range(degree + 1):
+        i = first + j
+        if j >= 1:
+            den = knots[i + degree] - knots[i]
+            d[:, j] += np.divide(degree * lower[:, j - 1], den, out=np.zeros(len(x)), where=den != 0)
+        if j < degree:
+            den = knots[i + degree + 1] - knots[i + 1]
+            d[:, j] -= np.divide(degree * lower[:, j], den, out=np.zeros(len(x)), where=den != 0)
+    return first, n, d
+
+
+@dataclass(frozen=True)
+class BSplineSurface:
+    """Non-rational tensor-product B-spline surface with clamped knots.
+
+    Attributes
+    ----------
+    degree_u, degree_v : int
+    knots_u : (nu + degree_u + 1,) float
+    knots_v : (nv + degree_v + 1,) float
+    control_points : (nu, nv, 3) float
+    """
+
+    degree_u: int
+    degree_v: int
+    knots_u: np.ndarray
+    knots_v: np.ndarray
+    control_points: np.ndarray
+
+    @classmethod
+    def from_params(cls, params: dict) -> "BSplineSurface":
+        """Rebuild from a :class:`~recon.fit.SurfaceFit`'s plain ``params``."""
+        return cls(
+            int(params["degree_u"]),
+            int(params["degree_v"]),
+            np.asarray(params["knots_u"], dtype=float),
+            np.asarray(params["knots_v"], dtype=float),
+            np.asarray(params["control_points"], dtype=float),
+        )
+
+    def to_params(self) -> dict:
+        """Plain floats / lists for a :class:`~recon.fit.SurfaceFit`."""
+        return {
+            "degree_u": self.degree_u,
+            "degree_v": self.degree_v,
+            "knots_u": self.knots_u.tolist(),
+            "knots_v": self.knots_v.tolist(),
+            "control_points": self.control_points.tolist(),
+            "periodic_u": False,
+            "periodic_v": False,
+        }
+
+    @property
+    def domain(self) -> np.ndarray:
+        """(2, 2) float: ``[[u0, u1], [v0, v1]]``."""
+        pu, pv = self.degree_u, self.degree_v
+        return np.array([[self.knots_u[pu], self.knots_u[-pu - 1]], [self.knots_v[pv], self.knots_v[-pv - 1]]])
+
+    def _gather(self, fu, fv):
+        iu = fu[:, None] + np.arange(self.degree_u + 1)
+        iv = fv[:, None] + np.arange(self.degree_v + 1)
+        return self.control_points[iu[:, :, None], iv[:, None, :]]  # (m, pu+1, pv+1, 3)
+
+    def evaluate(self, u, v) -> np.ndarray:
+        """Points S(u, v), (m, 3) for u, v (m,) (clamped to the domain)."""
+        u, v = np.broadcast_arrays(np.atleast_1d(np.asarray(u, float)), np.atleast_1d(np.asarray(v, float)))
+        fu, nu = basis_functions(u.ravel(), self.knots_u, self.degree_u)
+        fv, nv = basis_functions(v.ravel(), self.knots_v, self.degree_v)
+        return np.einsum("mi,mj,mijk->mk", nu, nv, self._gather(fu, fv))
+
+    def derivatives(self, u, v) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """S, ∂S/∂u, ∂S/∂v at (u, v): three (m, 3) arrays."""
+        fu, nu, du = basis_functions(np.asarray(u, float), self.knots_u, self.degree_u, derivative=True)
+        fv, nv, dv = basis_functions(np.asarray(v, float), self.knots_v, self.degree_v, derivative=True)
+        cp = self._gather(fu, fv)
+        return (
+            np.einsum("mi,mj,mijk->mk", nu, nv, cp),
+            np.einsum("mi,mj,mijk->mk", du, nv, cp),
+            np.einsum("mi,mj,mijk->mk", nu, dv, cp),
+        )
+
+    def closest_parameters(self, points, uv0=None, *, iterations: int = 8, grid: int = 48) -> np.ndarray:
+        """Parameters (m, 2) of the closest surface point to each of ``points`` (m, 3).
+
+        Starts from ``uv0`` or from the nearest of ``grid`` × ``grid`` surface samples, then Gauss–Newton
+        steps on |S(u, v) − p|², clamped to the domain. Good for deviations of points near the surface (a few
+        grid cells); not a global solver for far-away points.
+        """
+        pts = np.asarray(points, dtype=float)
+        (u0, u1), (v0, v1) = self.domain
+        if uv0 is None:
+            gu, gv = np.meshgrid(np.linspace(u0, u1, grid), np.linspace(v0, v1, grid), indexing="ij")
+            samples = self.evaluate(gu.ravel(), gv.ravel())
+            _, idx = cKDTree(samples).query(pts)
+            uv = np.column_stack([gu.ravel()[idx], gv.ravel()[idx]])
+        else:
+            uv = np.array(uv0, dtype=float, copy=True)
+        for _ in range(iterations):
+            s, su, sv = self.derivatives(uv[:, 0], uv[:, 1])
+            r = pts - s
+            a11 = np.einsum("ij,ij->i", su, su)
+            a12 = np.einsum("ij,ij->i", su, sv)
+            a22 = np.einsum("ij,ij->i", sv, sv)
+            b1 = np.einsum("ij,ij->i", su, r)
+            b2 = np.einsum("ij,ij->i", sv, r)
+            det = a11 * a22 - a12 * a12
+            det = np.where(np.abs(det) > 1e-300, det, 1e-300)
+            uv[:, 0] += (a22 * b1 - a12 * b2) / det
+            uv[:, 1] += (a11 * b2 - a12 * b1) / det
+            uv[:, 0] = np.clip(uv[:, 0], u0, u1)
+            uv[:, 1] = np.clip(uv[:, 1], v0, v1)
+        return uv
+
+    def distance(self, points, uv0=None) -> np.ndarray:
+        """Signed distance (m,) of ``points`` (m, 3), positive on the side of S_u × S_v."""
+        pts = np.asarray(points, dtype=float)
+        uv = self.closest_parameters(pts, uv0)
+        s, su, sv = self.derivatives(uv[:, 0], uv[:, 1])
+        r = pts - s
+        sign = np.sign(np.einsum("ij,ij->i", r, np.cross(su, sv)))
+        return np.where(sign < 0, -1.0, 1.0) * np.linalg.norm(r, axis=1)
+
+
+# ------------------------------------------------------------------------------------- parametrisation
+
+
+def _plane_frame(points: np.ndarray):
+    mean = points.mean(axis=0)
+    _, vec = np.linalg.eigh(np.cov((points - mean).T))
+    return mean, vec[:, 2], vec[:, 1], vec[:, 0]  # origin, u axis, v axis, normal
+
+
+def _harmonic_disk(n_points: int, faces: np.ndarray) -> np.ndarray | None:
+    """Tutte map of a disk-shaped triangle patch onto the unit disk; None if the patch is not a disk."""
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    uniq, counts = np.unique(edges, axis=0, return_counts=True)
+    used = np.unique(faces)
+    if n_points - len(uniq) + len(faces) != 1 or len(used) != n_points:
+        return None  # Euler characteristic of a disk is 1 (and every point must belong to a triangle)
+    boundary = uniq[counts == 1]
+    if len(boundary) < 3:
+        return None
+    nxt = {}
+    for a, b in boundary:
+        nxt.setdefault(int(a), []).append(int(b))
+        nxt.setdefault(int(b), []).append(int(a))
+    if any(len(v) != 2 for v in nxt.values()):
+        return None
+    loop = [int(boundary[0, 0])]
+    prev = -1
+    while True:
+        a, b = nxt[loop[-1]]
+        step = a if a != prev else b
+        if step == loop[0]:
+            break
+        prev = loop[-1]
+        loop.append(step)
+    if len(loop) != len(boundary):
+        return None  # several boundary loops
+    return loop
+
+
+def _parametrise(points, normals, faces):
+    """Initial (u, v) of every point and a function mapping them; or (None, reason)."""
+    origin, eu, ev, en = _plane_frame(points)
+    cosines = np.abs(normals @ en)
+    if np.percentile(cosines, 1) > np.cos(np.deg2rad(80)):
+        q = points - origin
+        return np.column_stack([q @ eu, q @ ev]), "plane"
+    if faces is None:
+        return None, "not a height field over its best plane, and no faces were given for a harmonic map"
+    loop = _harmonic_disk(len(points), faces)
+    if loop is None:
+        return None, "not a height field and not a topological disk (a wrap-around patch): fit it analytically"
+    loop = np.asarray(loop)
+    seg = np.linalg.norm(np.diff(points[np.r_[loop, loop[0]]], axis=0), axis=1)
+    angle = 2 * np.pi * np.r_[0.0, np.cumsum(seg)[:-1]] / seg.sum()
+    n = len(points)
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])
+    e = np.unique(np.sort(e, axis=1), axis=0)
+    adj = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])), shape=(n, n)).tocsr()
+    lap = sp.diags(np.asarray(adj.sum(axis=1)).ravel()) - adj
+    fixed = np.zeros(n, bool)
+    fixed[loop] = True
+    uv = np.zeros((n, 2))
+    uv[loop] = np.column_stack([np.cos(angle), np.sin(angle)])
+    free = ~fixed
+    a = lap[free][:, free].tocsc()
+    rhs = -lap[free][:, fixed] @ uv[fixed]
+    uv[free] = np.column_stack([spsolve(a, rhs[:, 0]), spsolve(a, rhs[:, 1])])
+    return uv, "harmonic"
+
+
+# ------------------------------------------------------------------------------------------------ fit
+
+
+def _difference(n: int, order: int) -> sp.csr_matrix:
+    return sp.csr_matrix(np.diff(np.eye(n), n=order, axis=0))
+
+
+def _design(uv, ku, kv, p, nu, nv):
+    fu, bu = basis_functions(uv[:, 0], ku, p)
+    fv, bv = basis_functions(uv[:, 1], kv, p)
+    m = len(uv)
+    ar = np.arange(p + 1)
+    cols = (fu[:, None, None] + ar[None, :, None]) * nv + (fv[:, None, None] + ar[None, None, :])
+    vals = bu[:, :, None] * bv[:, None, :]
+    rows = np.repeat(np.arange(m), (p + 1) ** 2)
+    return sp.csr_matrix((vals.ravel(), (rows, cols.ravel())), shape=(m, nu * nv))
+
+
+def _solve(points, uv, box, intervals, degree, smoothing):
+    (u0, u1), (v0, v1) = box
+    ku = clamped_knots(u0, u1, intervals[0], degree)
+    kv = clamped_knots(v0, v1, intervals[1], degree)
+    nu, nv = intervals[0] + degree, intervals[1] + degree
+    a = _design(uv, ku, kv, degree, nu, nv)
+    du2, dv2 = _difference(nu, 2), _difference(nv, 2)
+    du1, dv1 = _difference(nu, 1), _difference(nv, 1)
+    iu, iv = sp.identity(nu), sp.identity(nv)
+    pen = [sp.kron(du2, iv), sp.kron(iu, dv2), np.sqrt(2.0) * sp.kron(du1, dv1)]
+    penalty = sum(d.T @ d for d in pen)
+    ata = (a.T @ a).tocsc()
+    lam = smoothing * ata.diagonal().mean() / max(penalty.diagonal().mean(), 1e-300)
+    # a tiny ridge keeps control points with no data and no curvature (corners of the box) determined
+    system = (ata + lam * penalty + 1e-10 * ata.diagonal().mean() * sp.identity(nu * nv)).tocsc()
+    cp = spsolve(system, a.T @ points)
+    return BSplineSurface(degree, degree, ku, kv, np.asarray(cp).reshape(nu, nv, 3))
+
+
+def fit_bspline_surface(
+    points,
+    normals=None,
+    *,
+    faces=None,
+    tolerance: float | None = None,
+    degree: int = 3,
+    intervals: int | None = None,
+    smoothing: float = 1e-3,
+    corrections: int = 3,
+    max_intervals: int = 40,
+) -> SurfaceFit:
+    """Penalised least-squares tensor-product B-spline through a patch (see the module notes for the method).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        n ≥ 16.
+    normals : (n, 3) float, optional
+        Any sign; estimated by k-NN PCA when omitted. Used to decide whether the patch is a height field.
+    faces : (m, 3) int, optional
+        Triangles over ``points`` (indices); needed for patches that are not height fields.
+    tolerance : float, optional
+        Knots are refined until the deviation meets the acceptance rule (or the data run out).
+    degree : int
+        Degree in both directions.
+    intervals : int, optional
+        Knot spans per direction to start with; default about sqrt(n / 40), at least 3.
+    smoothing : float
+        λ relative to the mean diagonal of AᵀA.
+    corrections : int
+        Parameter-correction rounds.
+    max_intervals : int
+        Upper bound on the knot spans per direction.
+
+    Returns
+    -------
+    SurfaceFit
+        ``type == "bspline"``; ``params`` as :meth:`BSplineSurface.to_params`. Falsy for wrap-around patches.
+    """
+    pts = as_points(points, min_count=16)
+    if normals is None:
+        nrm = estimate_normals(pts)
+    else:
+        nrm = as_points(normals, "normals")
+        if len(nrm) != len(pts):
+            raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
+        nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+    if faces is not None:
+        faces = np.asarray(faces)
+        if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+            raise FitError(f"`faces` must be an (m, 3) int array, got {faces.shape} {faces.dtype}")
+        if faces.size and (faces.min() < 0 or faces.max() >= len(pts)):
+            raise FitError("`faces` indexes outside `points`")
+    if degree < 1:
+        raise FitError(f"`degree` must be ≥ 1, got {degree}")
+    uv, how = _parametrise(pts, nrm, faces)
+    if uv is None:
+        return SurfaceFit("bspline", {}, deviation_stats(np.empty(0)), len(pts), ok=False, reason=f"bspline: {how}")
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    margin = 0.05 * (hi - lo)
+    box = np.column_stack([lo - margin, hi + margin])
+    aspect = (hi - lo) / max((hi - lo).max(), 1e-300)
+    # the data must support the control grid: about ≥ 4 points per control point
+    cap = max(3, int(min(max_intervals, np.sqrt(len(pts) / 4.0) - degree)))
+    k = intervals or max(3, int(round(np.sqrt(len(pts) / 40.0))))
+    k = min(k, cap)
+    while True:
+        spans = (max(2, int(round(k * aspect[0]))), max(2, int(round(k * aspect[1]))))
+        surf = _solve(pts, uv, box, spans, degree, smoothing)
+        cur = uv
+        for _ in range(corrections):
+            cur = surf.closest_parameters(pts, cur, iterations=4)
+            surf = _solve(pts, cur, box, spans, degree, smoothing)
+        d = surf.distance(pts, cur)
+        dev = deviation_stats(d)
+        if tolerance is None or within_tolerance(dev, tolerance) or k >= cap:
+            break
+        k = min(cap, int(np.ceil(k * 1.5)))
+    log.debug("bspline (%s parametrisation): %s control grid, deviation %s", how, surf.control_points.shape, dev)
+    ok, reason = True, ""
+    if tolerance is not None and not within_tolerance(dev, tolerance):
+        ok = False
+        reason = f"bspline: deviation p99 {dev['p99']:.3g} / max {dev['max']:.3g} exceeds tolerance {tolerance:.3g}"
+    return SurfaceFit("bspline", surf.to_params(), dev, len(pts), ok=ok, reason=reason)

@@ -1,0 +1,394 @@
+"""Analytic surface fits: plane, sphere, cylinder, cone, torus.
+
+Each fit is a closed-form start followed by a robust least-squares refinement of the *geometric* distance
+(``scipy.optimize.least_squares`` with the ``soft_l1`` loss), so a few stray points do not drag it:
+
+- plane: PCA (the least-squares plane), then iteratively reweighted PCA with soft-l1 weights;
+- sphere: the algebraic (linear) fit ``|p|² = 2 c·p + k``;
+- cylinder: axis = the direction most orthogonal to the normals (smallest eigenvector of Σ n nᵀ), then a
+  circle fit in the plane orthogonal to it;
+- cone: the apex lies on every tangent plane (n·a = n·p, linear in a); seen from the apex the points make a
+  constant angle with the axis, so the axis is the normal of the plane fitted to the unit vectors (p − a)/|p − a|;
+- torus: the normal lines of a surface of revolution meet its axis. In Plücker coordinates (d, m) the
+  condition "meets the normal line (n, p × n)" is linear, d·(p × n) + n·m = 0, so the axis is the smallest
+  singular vector of that system (Pottmann & Wallner, *Computational Line Geometry*, §7.2); major and minor
+  radius then come from a circle fit in the (ρ, z) half-plane.
+
+None of these uses the sign of the normals, so unoriented PCA normals (``estimate_normals``) suffice.
+Directions are refined through a 2-parameter tangent update ``d = normalize(d0 + a e1 + b e2)``, which has no
+singularity near the start.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import FitError
+from ._noise import estimate_normals
+from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, as_points, cone_distance, perpendicular_frame
+from ._types import SurfaceFit, deviation_stats, within_tolerance
+
+__all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
+
+log = logging.getLogger(__name__)
+
+#: Larger inputs are fitted on an evenly strided subset of this many points (deviations use all points).
+MAX_FIT_POINTS = 2000
+#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
+_HUGE = 1e3
+#: Half-angles within this of 0 (or π/2) make a cone a cylinder (or a plane).
+_MIN_ANGLE = np.deg2rad(0.5)
+
+
+# ----------------------------------------------------------------------------------------------- helpers
+
+
+def _prepare(points, normals, *, min_count: int, need_normals: bool):
+    pts = as_points(points, min_count=min_count)
+    nrm = None
+    if normals is not None:
+        nrm = as_points(normals, "normals")
+        if len(nrm) != len(pts):
+            raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
+        lengths = np.linalg.norm(nrm, axis=1, keepdims=True)
+        if np.any(lengths == 0):
+            raise FitError("`normals` contains zero vectors")
+        nrm = nrm / lengths
+    step = max(1, -(-len(pts) // MAX_FIT_POINTS))
+    sub = pts[::step]
+    sub_n = None
+    if need_normals:
+        sub_n = nrm[::step] if nrm is not None else estimate_normals(sub)
+    return pts, sub, sub_n
+
+
+def _extent(points: np.ndarray) -> float:
+    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+
+
+def _robust(fun, x0, scale: float, jac="2-point"):
+    """soft-l1 least squares; ``scale`` is where the loss turns from quadratic to linear (≈ the noise)."""
+    return least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=scale, x_scale="jac", max_nfev=200)
+
+
+def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
+    if scale is not None:
+        if not scale > 0:
+            raise FitError(f"`scale` must be > 0, got {scale}")
+        return float(scale)
+    mad = 1.4826 * float(np.median(np.abs(residuals - np.median(residuals))))
+    return max(mad, 1e-9 * size)
+
+
+def _finish(kind, params, surface, points, tolerance, *, reason: str = "") -> SurfaceFit:
+    dev = deviation_stats(surface.distance(points)) if surface is not None else deviation_stats(np.empty(0))
+    ok = not reason
+    if ok and tolerance is not None and not within_tolerance(dev, tolerance):
+        ok = False
+        reason = f"{kind}: deviation p99 {dev['p99']:.3g} / max {dev['max']:.3g} exceeds tolerance {tolerance:.3g}"
+    return SurfaceFit(kind, params, dev, len(points), ok=ok, reason=reason)
+
+
+def _failed(kind: str, n: int, reason: str) -> SurfaceFit:
+    log.debug("%s fit failed: %s", kind, reason)
+    return SurfaceFit(kind, {}, deviation_stats(np.empty(0)), n, ok=False, reason=f"{kind}: {reason}")
+
+
+def _direction(d0, e1, e2, a, b):
+    d = d0 + a * e1 + b * e2
+    return d / np.linalg.norm(d)
+
+
+def _circle_2d(xy: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """Algebraic (Kåsa) circle fit: x² + y² = 2 c·x + k. Returns (centre, radius) or None if degenerate."""
+    mean = xy.mean(axis=0)
+    q = xy - mean
+    a = np.column_stack([2 * q, np.ones(len(q))])
+    b = np.einsum("ij,ij->i", q, q)
+    sol, *_ = np.linalg.lstsq(a, b, rcond=None)
+    c, k = sol[:2], sol[2]
+    r2 = k + c @ c
+    if not np.isfinite(r2) or r2 <= 0:
+        return None
+    return c + mean, float(np.sqrt(r2))
+
+
+def _vec(v) -> list[float]:
+    return [float(x) for x in v]
+
+
+# ----------------------------------------------------------------------------------------------- fitters
+
+
+def fit_plane(points, normals=None, *, tolerance: float | None = None, scale: float | None = None) -> SurfaceFit:
+    """Fit a plane.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        n ≥ 3.
+    normals : (n, 3) float, optional
+        Not needed (accepted so every fitter has the same signature).
+    tolerance : float, optional
+        When given, ``ok`` also requires the acceptance rule of :func:`recon.fit.within_tolerance`.
+    scale : float, optional
+        Robust loss scale (≈ noise σ); default 1.4826·MAD of the PCA plane's residuals.
+
+    Returns
+    -------
+    SurfaceFit
+        ``params``: ``origin`` (weighted centroid), ``normal``.
+    """
+    pts, sub, _ = _prepare(points, normals, min_count=3, need_normals=False)
+    w = np.ones(len(sub))
+    s = None
+    for _ in range(4):  # IRLS with soft-l1 weights 1/sqrt(1 + (r/s)²)
+        origin = (w[:, None] * sub).sum(axis=0) / w.sum()
+        q = sub - origin
+        _, vec = np.linalg.eigh((w[:, None] * q).T @ q)
+        normal = vec[:, 0]
+        r = q @ normal
+        if s is None:
+            s = _scale(r, scale, _extent(sub))
+        w = 1.0 / np.sqrt(1.0 + (r / s) ** 2)
+    params = {"origin": _vec(origin), "normal": _vec(normal)}
+    return _finish("plane", params, Plane(origin, normal), pts, tolerance)
+
+
+def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: float | None = None) -> SurfaceFit:
+    """Fit a sphere: algebraic start, robust geometric refinement.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        n ≥ 4.
+    normals : (n, 3) float, optional
+        Not needed.
+    tolerance, scale : float, optional
+        See :func:`fit_plane`.
+
+    Returns
+    -------
+    SurfaceFit
+        ``params``: ``center``, ``radius``. Falsy if the points are (numerically) coplanar or the radius
+        exceeds 10³ patch diagonals (a plane).
+    """
+    pts, sub, _ = _prepare(points, normals, min_count=4, need_normals=False)
+    size = _extent(sub)
+    mean = sub.mean(axis=0)
+    q = sub - mean
+    a = np.column_stack([2 * q, np.ones(len(q))])
+    sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
+    c0, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
+    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > _HUGE * size:
+        return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
+
+    def fun(x):
+        return np.linalg.norm(q - x[:3], axis=1) - x[3]
+
+    def jac(x):
+        diff = q - x[:3]
+        dist = np.linalg.norm(diff, axis=1, keepdims=True)
+        return np.column_stack([-diff / np.maximum(dist, 1e-300), -np.ones(len(q))])
+
+    x0 = np.r_[c0, np.sqrt(r2)]
+    res = _robust(fun, x0, _scale(fun(x0), scale, size), jac=jac)
+    center, radius = res.x[:3] + mean, abs(float(res.x[3]))
+    if radius > _HUGE * size:
+        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g} ≫ patch size {size:.3g}: a plane)")
+    params = {"center": _vec(center), "radius": radius}
+    return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
+
+
+def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale: float | None = None) -> SurfaceFit:
+    """Fit a circular cylinder: axis from the normal field, circle in the orthogonal plane, robust refinement.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        n ≥ 5.
+    normals : (n, 3) float, optional
+        Surface normals (any sign); estimated by k-NN PCA when omitted.
+    tolerance, scale : float, optional
+        See :func:`fit_plane`.
+
+    Returns
+    -------
+    SurfaceFit
+        ``params``: ``axis_point`` (foot of the centroid on the axis), ``axis_dir``, ``radius``. Falsy if
+        degenerate (radius > 10³ patch diagonals: a plane).
+    """
+    pts, sub, nrm = _prepare(points, normals, min_count=5, need_normals=True)
+    size = _extent(sub)
+    mean = sub.mean(axis=0)
+    q = sub - mean
+    _, vec = np.linalg.eigh(nrm.T @ nrm)
+    d0 = vec[:, 0]
+    e1, e2 = perpendicular_frame(d0)
+    circle = _circle_2d(np.column_stack([q @ e1, q @ e2]))
+    if circle is None or circle[1] > _HUGE * size:
+        return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
+    c0 = circle[0][0] * e1 + circle[0][1] * e2
+
+    def fun(x):
+        d = _direction(d0, e1, e2, x[0], x[1])
+        w = q - (c0 + x[2] * e1 + x[3] * e2)
+        h = w @ d
+        return np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0)) - x[4]
+
+    x0 = np.array([0.0, 0.0, 0.0, 0.0, circle[1]])
+    res = _robust(fun, x0, _scale(fun(x0), scale, size))
+    d = _direction(d0, e1, e2, res.x[0], res.x[1])
+    c = c0 + res.x[2] * e1 + res.x[3] * e2
+    c = c - (c @ d) * d + mean  # foot of the centroid on the axis
+    radius = abs(float(res.x[4]))
+    if radius > _HUGE * size:
+        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g} ≫ patch size {size:.3g}: a plane)")
+    params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
+    return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
+
+
+def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: float | None = None) -> SurfaceFit:
+    """Fit a circular cone (one nappe): apex from the tangent planes, axis from the apex's view, robust refinement.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        n ≥ 6.
+    normals : (n, 3) float, optional
+        Surface normals (any sign); estimated by k-NN PCA when omitted.
+    tolerance, scale : float, optional
+        See :func:`fit_plane`.
+
+    Returns
+    -------
+    SurfaceFit
+        ``params``: ``apex``, ``axis_dir`` (into the opening), ``half_angle`` (radians), ``ref_point``,
+        ``ref_radius``. Falsy when degenerate: half-angle < 0.5° or apex farther than 10³ patch diagonals
+        (a cylinder), half-angle > 89.5° (a plane).
+    """
+    pts, sub, nrm = _prepare(points, normals, min_count=6, need_normals=True)
+    size = _extent(sub)
+    mean = sub.mean(axis=0)
+    q = sub - mean
+    m = nrm.T @ nrm
+    evals = np.linalg.eigvalsh(m)
+    if evals[0] < 1e-8 * evals[-1]:
+        return _failed("cone", len(pts), "degenerate (normals do not span 3D: a cylinder or plane)")
+    apex0 = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
+    if np.linalg.norm(apex0) > _HUGE * size:
+        return _failed("cone", len(pts), "degenerate start (apex at infinity: a cylinder)")
+    u = q - apex0
+    u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+    _, vec = np.linalg.eigh(np.cov(u.T))
+    d0 = vec[:, 0] if np.mean(u @ vec[:, 0]) > 0 else -vec[:, 0]
+    alpha0 = float(np.arccos(np.clip(np.mean(u @ d0), -1.0, 1.0)))
+    e1, e2 = perpendicular_frame(d0)
+
+    def fun(x):
+        return cone_distance(q, apex0 + x[2:5], _direction(d0, e1, e2, x[0], x[1]), x[5])
+
+    x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, alpha0])
+    res = _robust(fun, x0, _scale(fun(x0), scale, size))
+    d = _direction(d0, e1, e2, res.x[0], res.x[1])
+    apex = apex0 + res.x[2:5]
+    alpha = float(res.x[5])
+    if alpha < 0:  # the same cone seen from the other nappe's axis
+        alpha, d = -alpha, -d
+    if alpha < _MIN_ANGLE or np.linalg.norm(apex) > _HUGE * size:
+        return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a cylinder)")
+    if alpha > np.pi / 2 - _MIN_ANGLE:
+        return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a plane)")
+    if np.median((q - apex) @ d) < 0:
+        return _failed("cone", len(pts), "points lie on the other nappe")
+    apex = apex + mean
+    h = float(np.mean((pts - apex) @ d))
+    params = {
+        "apex": _vec(apex),
+        "axis_dir": _vec(d),
+        "half_angle": alpha,
+        "ref_point": _vec(apex + h * d),
+        "ref_radius": float(h * np.tan(alpha)),
+    }
+    return _finish("cone", params, Cone(apex, d, alpha), pts, tolerance)
+
+
+def _revolution_axis(q: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Least-squares line meeting all normal lines (q_i, n_i), in Plücker coordinates; (point, unit dir)."""
+    s = np.sqrt(np.mean(np.einsum("ij,ij->i", q, q)))
+    qs = q / s
+    a = np.column_stack([np.cross(qs, nrm), nrm])
+    _, vec = np.linalg.eigh(a.T @ a)
+    d, mom = vec[:3, 0], vec[3:, 0]
+    nd = np.linalg.norm(d)
+    if nd < 1e-6:
+        return None
+    d, mom = d / nd, mom / nd
+    mom -= (mom @ d) * d  # Plücker constraint d·m = 0
+    return np.cross(d, mom) * s, d
+
+
+def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: float | None = None) -> SurfaceFit:
+    """Fit a torus: axis as the line meeting all normal lines, radii from a (ρ, z) circle, robust refinement.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        n ≥ 7.
+    normals : (n, 3) float, optional
+        Surface normals (any sign); estimated by k-NN PCA when omitted.
+    tolerance, scale : float, optional
+        See :func:`fit_plane`.
+
+    Returns
+    -------
+    SurfaceFit
+        ``params``: ``center``, ``axis_dir``, ``major_radius``, ``minor_radius``. Falsy when degenerate:
+        major radius < 10⁻³ patch diagonals (a sphere), major or minor radius > 10³ patch diagonals (a
+        cylinder / a plane), or major < minor (a self-intersecting spindle torus).
+    """
+    pts, sub, nrm = _prepare(points, normals, min_count=7, need_normals=True)
+    size = _extent(sub)
+    mean = sub.mean(axis=0)
+    q = sub - mean
+    axis = _revolution_axis(q, nrm)
+    if axis is None:
+        return _failed("torus", len(pts), "degenerate start (normal lines meet no common line)")
+    c0, d0 = axis
+    h, rho = _rho_z(q, c0, d0)
+    circle = _circle_2d(np.column_stack([rho, h]))
+    if circle is None or circle[1] > _HUGE * size:
+        return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
+    (r_major0, z0), r_minor0 = circle
+    c0 = c0 + z0 * d0
+    e1, e2 = perpendicular_frame(d0)
+
+    def fun(x):
+        d = _direction(d0, e1, e2, x[0], x[1])
+        hh, rr = _rho_z(q, c0 + x[2:5], d)
+        return np.hypot(rr - x[5], hh) - x[6]
+
+    x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, r_major0, r_minor0])
+    res = _robust(fun, x0, _scale(fun(x0), scale, size))
+    d = _direction(d0, e1, e2, res.x[0], res.x[1])
+    center = c0 + res.x[2:5] + mean
+    big, small = float(res.x[5]), float(res.x[6])
+    if big < 1e-3 * size:
+        return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
+    if big > _HUGE * size:
+        return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
+    if small <= 0 or small > _HUGE * size:
+        return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")
+    if big < small:
+        return _failed("torus", len(pts), f"spindle torus (major {big:.3g} < minor {small:.3g}) is not supported")
+    params = {"center": _vec(center), "axis_dir": _vec(d), "major_radius": big, "minor_radius": small}
+    return _finish("torus", params, Torus(center, d, big, small), pts, tolerance)
+
+
+def _rho_z(q: np.ndarray, c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    w = q - c
+    h = w @ d
+    return h, np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))

@@ -1,0 +1,148 @@
+"""Analytic surfaces as small frozen dataclasses with a vectorised signed ``distance``.
+
+Distances are exact Euclidean distances (signed: positive outside / on the normal's side), so a fit's
+residuals are geometric, not algebraic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import FitError
+
+__all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "surface_from_params", "as_points", "perpendicular_frame"]
+
+
+def as_points(points, name: str = "points", *, min_count: int = 1) -> np.ndarray:
+    """Validate ``points`` as an (n, 3) finite float array with n ≥ ``min_count``; raise FitError otherwise."""
+    try:
+        a = np.asarray(points, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise FitError(f"`{name}` must be an (n, 3) float array") from err
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise FitError(f"`{name}` must be an (n, 3) float array, got shape {a.shape}")
+    if len(a) < min_count:
+        raise FitError(f"`{name}` needs at least {min_count} points, got {len(a)}")
+    if not np.all(np.isfinite(a)):
+        raise FitError(f"`{name}` contains NaN or inf")
+    return a
+
+
+def perpendicular_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors (e1, e2) with (e1, e2, d) a right-handed orthonormal frame."""
+    d = d / np.linalg.norm(d)
+    helper = np.eye(3)[np.argmin(np.abs(d))]
+    e1 = np.cross(d, helper)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(d, e1)
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _axial_radial(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Height along ``axis`` and distance to the axis line of each point."""
+    w = points - origin
+    h = w @ axis
+    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+    return h, rho
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Plane through ``origin`` (3,) with unit ``normal`` (3,)."""
+
+    origin: np.ndarray
+    normal: np.ndarray
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive on the normal's side."""
+        return (np.asarray(points, dtype=float) - self.origin) @ self.normal
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Sphere of ``radius`` about ``center`` (3,)."""
+
+    center: np.ndarray
+    radius: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive outside."""
+        return np.linalg.norm(np.asarray(points, dtype=float) - self.center, axis=1) - self.radius
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Infinite circular cylinder: axis through ``axis_point`` along unit ``axis_dir``, ``radius``."""
+
+    axis_point: np.ndarray
+    axis_dir: np.ndarray
+    radius: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive outside."""
+        _, rho = _axial_radial(np.asarray(points, dtype=float), self.axis_point, self.axis_dir)
+        return rho - self.radius
+
+
+def cone_distance(points: np.ndarray, apex: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
+    """Signed distance to the nappe of a cone opening from ``apex`` along ``axis`` (positive outside)."""
+    w = points - apex
+    h, rho = _axial_radial(points, apex, axis)
+    s, c = np.sin(half_angle), np.cos(half_angle)
+    across = rho * c - h * s
+    along = rho * s + h * c  # position along the generator; < 0 means the apex is the closest point
+    return np.where(along >= 0.0, across, np.sign(across) * np.linalg.norm(w, axis=1))
+
+
+@dataclass(frozen=True)
+class Cone:
+    """Half cone (one nappe) with ``apex`` (3,), unit ``axis_dir`` into the opening, ``half_angle`` in (0, π/2)."""
+
+    apex: np.ndarray
+    axis_dir: np.ndarray
+    half_angle: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive outside."""
+        return cone_distance(np.asarray(points, dtype=float), self.apex, self.axis_dir, self.half_angle)
+
+
+@dataclass(frozen=True)
+class Torus:
+    """Torus about ``center`` (3,) and unit ``axis_dir``; ``major_radius`` R (to the tube's centre circle), ``minor_radius`` r."""
+
+    center: np.ndarray
+    axis_dir: np.ndarray
+    major_radius: float
+    minor_radius: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,) to the tube, positive outside it."""
+        h, rho = _axial_radial(np.asarray(points, dtype=float), self.center, self.axis_dir)
+        return np.hypot(rho - self.major_radius, h) - self.minor_radius
+
+
+def surface_from_params(kind: str, params: dict):
+    """Build the geometric surface of a :class:`~recon.fit.SurfaceFit` from its plain ``params``."""
+    p = {k: (np.asarray(v, dtype=float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
+    if kind == "plane":
+        return Plane(p["origin"], _unit(p["normal"]))
+    if kind == "sphere":
+        return Sphere(p["center"], float(p["radius"]))
+    if kind == "cylinder":
+        return Cylinder(p["axis_point"], _unit(p["axis_dir"]), float(p["radius"]))
+    if kind == "cone":
+        return Cone(p["apex"], _unit(p["axis_dir"]), float(p["half_angle"]))
+    if kind == "torus":
+        return Torus(p["center"], _unit(p["axis_dir"]), float(p["major_radius"]), float(p["minor_radius"]))
+    if kind == "bspline":
+        from ._bspline import BSplineSurface
+
+        return BSplineSurface.from_params(params)
+    raise FitError(f"unknown surface type {kind!r}")

@@ -1,0 +1,156 @@
+"""Results of the fitters: small frozen dataclasses holding plain numbers (see shared/STYLE.md).
+
+``params`` hold plain floats and lists (JSON-ready, and what ``recon.brep`` turns into ``gp_``/``Geom_``
+objects). The geometric object behind them (``.surface`` / ``.curve``) is rebuilt on demand and gives the
+vectorised ``distance``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any
+
+import numpy as np
+
+__all__ = ["SurfaceFit", "CurveFit", "SURFACE_TYPES", "CURVE_TYPES", "deviation_stats", "within_tolerance"]
+
+#: Surface types in the order :func:`recon.fit.fit_surface` tries them (simplest first, see there).
+SURFACE_TYPES = ("plane", "sphere", "cylinder", "cone", "torus", "bspline")
+#: Curve types in the order :func:`recon.fit.fit_curve` tries them.
+CURVE_TYPES = ("line", "circle", "bspline")
+
+#: Percentile of |d| that must be within tolerance (the max may be up to twice the tolerance).
+ACCEPT_PERCENTILE = 99.0
+#: Ratio of max |d| to tolerance still accepted.
+ACCEPT_MAX_FACTOR = 2.0
+
+
+def deviation_stats(d: np.ndarray) -> dict[str, float]:
+    """Deviation summary of distances ``d`` (n,): ``{"max", "rms", "p99"}`` of |d| as plain floats."""
+    a = np.abs(np.asarray(d, dtype=float))
+    if a.size == 0:
+        return {"max": float("nan"), "rms": float("nan"), "p99": float("nan")}
+    return {
+        "max": float(a.max()),
+        "rms": float(np.sqrt(np.mean(a * a))),
+        "p99": float(np.percentile(a, ACCEPT_PERCENTILE)),
+    }
+
+
+def within_tolerance(deviation: dict[str, float], tolerance: float) -> bool:
+    """The acceptance rule shared by every fitter.
+
+    A fit is accepted when the 99th percentile of |d| is ≤ ``tolerance`` and the max |d| is ≤ 2·``tolerance``.
+    The percentile (not the max) is the criterion because the max of n Gaussian residuals grows like
+    σ·sqrt(2 ln n) and a few outliers (a spike left by the mesher, a point from the neighbouring blend) must
+    not flip a plane into a B-spline; the cap on the max still rejects a fit that misses a small feature.
+    A wrong type leaves a *systematic* deviation over a large fraction of the points and fails the percentile.
+    """
+    return bool(
+        np.isfinite(deviation["p99"])
+        and deviation["p99"] <= tolerance
+        and deviation["max"] <= ACCEPT_MAX_FACTOR * tolerance
+    )
+
+
+@dataclass(frozen=True)
+class SurfaceFit:
+    """One fitted surface, or a failed attempt (falsy) with the reason.
+
+    Attributes
+    ----------
+    type : str
+        One of :data:`SURFACE_TYPES`.
+    params : dict
+        Plain floats / lists. Directions are unit vectors; angles in radians.
+
+        - plane: ``origin`` (a point of the patch: its centroid), ``normal``
+        - sphere: ``center``, ``radius``
+        - cylinder: ``axis_point`` (foot of the patch centroid on the axis), ``axis_dir``, ``radius``
+        - cone: ``apex``, ``axis_dir`` (from the apex into the opening, towards the points), ``half_angle``,
+          and ``ref_point``/``ref_radius``: the axis point at the patch's mean height and the cone radius there
+          (``gp_Cone`` wants a location with a radius; the apex is a singular point to keep away from)
+        - torus: ``center``, ``axis_dir``, ``major_radius``, ``minor_radius``
+        - bspline: ``degree_u``, ``degree_v``, ``knots_u``, ``knots_v`` (full clamped knot vectors),
+          ``control_points`` (nu, nv, 3) nested lists, ``periodic_u``/``periodic_v`` (always False)
+    deviation : dict
+        ``{"max", "rms", "p99"}`` of |distance| over the fitted points (NaN when nothing was fitted).
+    n_points : int
+    ok : bool
+        The fit succeeded (and, when a tolerance was given, is within it). ``bool(fit) == fit.ok``.
+    reason : str
+        Why not, when ``ok`` is False; empty otherwise.
+    """
+
+    type: str
+    params: dict[str, Any]
+    deviation: dict[str, float]
+    n_points: int
+    ok: bool = True
+    reason: str = ""
+
+    def __bool__(self) -> bool:
+        return bool(self.ok)
+
+    @cached_property
+    def surface(self):
+        """The geometric surface (``Plane``, ``Sphere``, ...), rebuilt from ``params``; None if there are none."""
+        from ._surfaces import surface_from_params
+
+        return surface_from_params(self.type, self.params) if self.params else None
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Distance of ``points`` (n, 3) to the surface, (n,) float.
+
+        Signed where meaningful: positive on the side of a plane's normal, outside a sphere, cylinder,
+        cone or torus, and on the side of ``S_u × S_v`` for a B-spline.
+        """
+        if self.surface is None:
+            raise ValueError(f"SurfaceFit of type {self.type!r} has no parameters: {self.reason}")
+        return self.surface.distance(points)
+
+
+@dataclass(frozen=True)
+class CurveFit:
+    """One fitted curve, or a failed attempt (falsy) with the reason.
+
+    Attributes
+    ----------
+    type : str
+        One of :data:`CURVE_TYPES`.
+    params : dict
+        - line: ``point``, ``direction``, ``start``, ``end`` (the first and last data points projected on the line)
+        - circle: ``center``, ``normal``, ``radius``, ``x_dir`` (angle 0), ``start_angle``, ``end_angle``
+          (radians, counter-clockwise about ``normal``, start < end, end − start ≤ 2π), ``full`` (bool)
+        - bspline: ``degree``, ``knots`` (full knot vector), ``control_points`` (c, 3), ``periodic`` (bool);
+          the curve is defined on ``[knots[degree], knots[-degree-1]]``
+    deviation : dict
+        ``{"max", "rms", "p99"}`` of the distance of the points to the curve.
+    n_points : int
+    ok : bool
+    reason : str
+    """
+
+    type: str
+    params: dict[str, Any]
+    deviation: dict[str, float]
+    n_points: int
+    ok: bool = True
+    reason: str = ""
+
+    def __bool__(self) -> bool:
+        return bool(self.ok)
+
+    @cached_property
+    def curve(self):
+        """The geometric curve (``Line``, ``Circle``, ``BSplineCurve``) rebuilt from ``params``."""
+        from ._curves import curve_from_params
+
+        return curve_from_params(self.type, self.params) if self.params else None
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Unsigned distance of ``points`` (n, 3) to the curve, (n,) float."""
+        if self.curve is None:
+            raise ValueError(f"CurveFit of type {self.type!r} has no parameters: {self.reason}")
+        return self.curve.distance(points)
