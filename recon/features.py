@@ -1,0 +1,216 @@
+"""A noise-robust feature measure on a triangle mesh: normal variation at a scale.
+
+The measure plays the role of the smooth/critical classification of Wekel & Hellwich [TW13] that §4 of
+the paper builds on: smooth patches are where it is low, the critical region (fillets, sharp edges,
+corners) where it is high.
+
+How it is computed (all sparse, no per-vertex Python):
+
+1. Vertex normals are smoothed by heat diffusion on the surface — implicit Euler steps of
+   ``(M + t L) x = M b`` with the lumped mass matrix ``M`` and the cotangent Laplacian ``L`` (negative
+   cotangents clipped to zero so the smoothing keeps the maximum principle on skinny triangles).
+   Heat diffusion at time ``t = s² / 2`` is a geodesic Gaussian of standard deviation ``s``: a scale in
+   length units, independent of the tessellation, that does not leak across thin walls like a
+   Euclidean ball would.
+2. The feature measure is the weighted variance of those smoothed normals in the same window,
+   ``1 - |mean normal|²`` (the trace of the normal covariance: 0 on a plane, about ``(s/R)²`` on a
+   cylinder of radius ``R``, close to ``1 - cos α`` across an edge of dihedral angle ``α``).
+   Smoothing first averages noise out; the variance then measures the geometry, not the noise.
+
+The scale ``s`` defaults to a few mean edge lengths, more when the estimated noise is larger.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import cg
+
+from .errors import MeshError
+
+__all__ = ["FeatureField", "feature_field", "mesh_arrays", "heat_smooth"]
+
+log = logging.getLogger(__name__)
+
+#: Default scale in mean edge lengths on a clean mesh.
+EDGE_FACTOR = 1.5
+#: Default scale in estimated noise standard deviations (noise averages out over the window).
+NOISE_FACTOR = 10.0
+
+
+@dataclass(frozen=True)
+class FeatureField:
+    """Per-vertex feature measure and the scale it was computed at.
+
+    Attributes
+    ----------
+    measure : (n,) float
+        Normal variance ``1 - |mean normal|²`` of the smoothed normals in a window of ``scale``; 0 … 1.
+    normals : (n, 3) float
+        Unit vertex normals smoothed at ``scale``.
+    scale : float
+        Standard deviation of the geodesic Gaussian window (mesh length units).
+    noise : float
+        Estimated standard deviation of the vertex noise normal to the surface (mesh length units).
+    mean_edge : float
+        Mean edge length of the mesh.
+    """
+
+    measure: np.ndarray
+    normals: np.ndarray
+    scale: float
+    noise: float
+    mean_edge: float
+
+    def face_measure(self, faces: np.ndarray) -> np.ndarray:
+        """(m,) float: the largest vertex measure of each triangle (a triangle touching a feature is critical)."""
+        return self.measure[faces].max(axis=1)
+
+
+def mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (n, 3) float64 and faces (m, 3) int64 of anything mesh-like, validated.
+
+    Parameters
+    ----------
+    mesh : object with ``vertices`` and ``faces``, or a ``(vertices, faces)`` pair
+    """
+    if isinstance(mesh, tuple) and len(mesh) == 2:
+        vertices, faces = mesh
+    else:
+        try:
+            vertices, faces = mesh.vertices, mesh.faces
+        except AttributeError:
+            raise MeshError("`mesh` must have `vertices` and `faces` (or be a (vertices, faces) pair)") from None
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise MeshError(f"`mesh.vertices` must be (n, 3), got shape {vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise MeshError(f"`mesh.faces` must be (m, 3) with m > 0, got shape {faces.shape}")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise MeshError("`mesh.faces` index vertices that do not exist")
+    if not np.isfinite(vertices).all():
+        raise MeshError("`mesh.vertices` contain NaN or infinite coordinates")
+    return vertices, faces
+
+
+def _laplacian(vertices, faces):
+    """Clipped cotangent Laplacian L (n, n) and lumped mass diagonal (n,)."""
+    n = len(vertices)
+    p = vertices[faces]  # (m, 3, 3)
+    cots = []
+    for k in range(3):
+        a = p[:, (k + 1) % 3] - p[:, k]
+        b = p[:, (k + 2) % 3] - p[:, k]
+        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        cots.append(np.einsum("ij,ij->i", a, b) / np.maximum(cross, 1e-300))
+    cot = np.clip(np.stack(cots, axis=1), 0.0, 10.0)  # angle at vertex k weighs the opposite edge
+    i = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+    j = np.concatenate([faces[:, 2], faces[:, 0], faces[:, 1]])
+    w = 0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
+    W = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)).tocsr()
+    L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
+    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    mass = np.bincount(faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=n)
+    # isolated or degenerate vertices keep their value instead of making the system singular
+    mass = np.maximum(mass, max(float(area.mean()), 1e-300) * 1e-9)
+    return L.tocsr(), mass
+
+
+def heat_smooth(values: np.ndarray, L, mass: np.ndarray, scale: float, *, steps: int = 3) -> np.ndarray:
+    """Geodesic Gaussian smoothing of per-vertex values by implicit heat diffusion.
+
+    Parameters
+    ----------
+    values : (n,) or (n, k) float
+    L : (n, n) sparse
+        Laplacian (positive semi-definite).
+    mass : (n,) float
+        Lumped vertex areas.
+    scale : float
+        Standard deviation of the Gaussian (length); diffusion time ``scale² / 2`` split into ``steps``.
+
+    Returns
+    -------
+    (n,) or (n, k) float
+    """
+    x = np.asarray(values, dtype=np.float64)
+    one = x.ndim == 1
+    x = x.reshape(len(x), -1).copy()
+    dt = 0.5 * scale**2 / steps
+    A = (sp.diags(mass) + dt * L).tocsr()
+    diag = A.diagonal()
+    precond = sp.diags(1.0 / diag)
+    for _ in range(steps):
+        for c in range(x.shape[1]):
+            b = mass * x[:, c]
+            sol, info = cg(A, b, x0=x[:, c], rtol=1e-6, maxiter=500, M=precond)
+            if info > 0:
+                log.debug("heat_smooth: CG stopped after %d iterations", info)
+            x[:, c] = sol
+    return x[:, 0] if one else x
+
+
+def _vertex_normals(vertices, faces):
+    fn = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    vn = np.zeros_like(vertices)
+    for k in range(3):  # area-weighted (the cross product's length is twice the area)
+        np.add.at(vn, faces[:, k], fn)
+    return vn
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
+
+
+def estimate_noise(vertices, faces, L, mass, mean_edge: float) -> float:
+    """Robust estimate of the vertex noise standard deviation normal to the surface.
+
+    Each vertex's offset from a lightly smoothed surface (scale of two edge lengths) along the smoothed
+    normal; the median absolute offset, scaled to a standard deviation. Features are a minority of the
+    vertices, so the median sees the smooth parts.
+    """
+    s = 2.0 * mean_edge
+    smooth_x = heat_smooth(vertices, L, mass, s)
+    nrm = _unit(heat_smooth(_vertex_normals(vertices, faces), L, mass, s))
+    d = np.einsum("ij,ij->i", vertices - smooth_x, nrm)
+    # The offset also carries the noise of the neighbours the smoothing averaged: on noisy planes with a
+    # known sigma the MAD came out 1.2-1.5x sigma, hence the 0.8.
+    return float(0.8 * 1.4826 * np.median(np.abs(d - np.median(d))))
+
+
+def feature_field(mesh, *, scale: float | None = None, noise: float | None = None) -> FeatureField:
+    """Feature measure per vertex at a scale tied to the sampling and the noise.
+
+    Parameters
+    ----------
+    mesh : object with ``vertices`` (n, 3) and ``faces`` (m, 3), or a ``(vertices, faces)`` pair
+    scale : float, optional
+        Window standard deviation in mesh units. Default: ``max(1.5 · mean edge, 10 · noise)``.
+    noise : float, optional
+        Vertex noise standard deviation, if known; estimated from the mesh otherwise.
+
+    Returns
+    -------
+    FeatureField
+    """
+    vertices, faces = mesh_arrays(mesh)
+    if scale is not None and not (np.isfinite(scale) and scale > 0):
+        raise MeshError(f"`scale` must be a positive number, got {scale!r}")
+    e = vertices[np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])]
+    mean_edge = float(np.linalg.norm(e[:, 0] - e[:, 1], axis=1).mean())
+    if not mean_edge > 0:
+        raise MeshError("`mesh` has only zero-length edges")
+    L, mass = _laplacian(vertices, faces)
+    if noise is None:
+        noise = estimate_noise(vertices, faces, L, mass, mean_edge)
+    if scale is None:
+        scale = max(EDGE_FACTOR * mean_edge, NOISE_FACTOR * noise)
+    n1 = _unit(heat_smooth(_vertex_normals(vertices, faces), L, mass, scale))
+    mean = heat_smooth(n1, L, mass, scale)
+    measure = np.clip(1.0 - np.einsum("ij,ij->i", mean, mean), 0.0, 1.0)
+    log.info("feature field: %d vertices, mean edge %.4g, noise %.4g, scale %.4g", len(vertices), mean_edge, noise, scale)
+    return FeatureField(measure=measure, normals=n1, scale=float(scale), noise=float(noise), mean_edge=mean_edge)
