@@ -1,7 +1,8 @@
 """Read a mesh file into one triangle list, in the file's own triangle order, then clean it.
 
-trimesh does the parsing, always with ``process=False`` (and ``maintain_order`` for OBJ) so that it never
-merges vertices or reorders triangles behind our back (see shared/STYLE.md).
+trimesh parses STL, PLY, 3MF and GLB, always with ``process=False`` so that it never merges vertices or
+reorders triangles behind our back (see shared/STYLE.md). OBJ and OFF, and the polygon list of a PLY, are
+read here (``_polygons.py``) because trimesh regroups their faces by material or by polygon size.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import numpy as np
 
 from ..errors import InputError, MeshError
 from ._clean import clean_mesh
+from ._polygons import ply_polygons, read_obj, read_off
 from ._types import Mesh
 
 __all__ = ["load_mesh", "read_triangles", "SUPPORTED_FORMATS"]
@@ -56,8 +58,8 @@ def load_mesh(path: str | os.PathLike, *, weld_tolerance: float | None = None) -
 def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     """The raw triangles of a mesh file, unwelded and in file order.
 
-    Polygons are triangulated by trimesh as a fan, in place. A file with several objects (GLB, 3MF,
-    OBJ ``o``/``g``) is concatenated in the order its geometries appear in the file; a geometry placed
+    Polygons (OBJ, OFF, PLY) become fans of triangles in place. A file with several objects (GLB,
+    3MF) is concatenated in the order its geometries appear in the file; a geometry placed
     several times appears once per placement, transformed, in scene-graph order. Point clouds and
     curves in a scene are skipped.
 
@@ -80,14 +82,22 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
     if path.stat().st_size == 0:
         raise MeshError(f"{path}: file is empty")
 
+    if ext in (".obj", ".off"):
+        reader = read_obj if ext == ".obj" else read_off
+        try:
+            vertices, faces = reader(path)
+        except MeshError as err:
+            raise MeshError(f"{path}: {err}") from None
+        except (OSError, UnicodeError) as err:
+            raise MeshError(f"{path}: cannot read as {ext[1:].upper()}: {_one_line(err)}") from err
+        if len(faces) == 0:
+            raise MeshError(f"{path}: the file has no triangles")
+        return vertices, faces
+
     import trimesh
 
-    kwargs = {"process": False}
-    if ext == ".obj":
-        # group_material would regroup triangles by material; maintain_order keeps vertex order.
-        kwargs.update(maintain_order=True, group_material=False, skip_materials=True)
     try:
-        scene = trimesh.load_scene(path, file_type=SUPPORTED_FORMATS[ext], **kwargs)
+        scene = trimesh.load_scene(path, file_type=SUPPORTED_FORMATS[ext], process=False)
     except Exception as err:  # trimesh raises many kinds (ValueError, KeyError, struct.error, ...)
         raise MeshError(f"{path}: cannot read as {ext[1:].upper()}: {_one_line(err)}") from err
 
@@ -101,7 +111,8 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
         nodes = scene.graph.geometry_nodes.get(name) or [None]
         for node in nodes:
             v = np.asarray(geom.vertices, dtype=np.float64)
-            f = np.asarray(geom.faces, dtype=np.int64)
+            f = ply_polygons(geom) if ext == ".ply" else None
+            f = np.asarray(geom.faces if f is None else f, dtype=np.int64)
             if node is not None:
                 matrix = np.asarray(scene.graph[node][0], dtype=np.float64)
                 if not np.allclose(matrix, np.eye(4)):
