@@ -39,6 +39,8 @@ log = logging.getLogger(__name__)
 MAX_FIT_POINTS = 2000
 #: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
 _HUGE = 1e3
+#: Evaluation budget of the refinement: a good start converges in < 15; wrong types wander and are cut short.
+_MAX_NFEV = 60
 #: Half-angles within this of 0 (or π/2) make a cone a cylinder (or a plane).
 _MIN_ANGLE = np.deg2rad(0.5)
 
@@ -71,7 +73,7 @@ def _extent(points: np.ndarray) -> float:
 
 def _robust(fun, x0, scale: float, jac="2-point"):
     """soft-l1 least squares; ``scale`` is where the loss turns from quadratic to linear (≈ the noise)."""
-    return least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=scale, x_scale="jac", max_nfev=200)
+    return least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=scale, x_scale="jac", max_nfev=_MAX_NFEV)
 
 
 def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
@@ -90,6 +92,16 @@ def _finish(kind, params, surface, points, tolerance, *, reason: str = "") -> Su
         ok = False
         reason = f"{kind}: deviation p99 {dev['p99']:.3g} / max {dev['max']:.3g} exceeds tolerance {tolerance:.3g}"
     return SurfaceFit(kind, params, dev, len(points), ok=ok, reason=reason)
+
+
+def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
+    """How close to its simpler limit a fit may come before it is called degenerate.
+
+    The user's tolerance when given, else 4 × the robust σ of the residuals (the default-tolerance rule).
+    """
+    if tolerance is not None:
+        return float(tolerance)
+    return 4.0 * 1.4826 * float(np.median(np.abs(residuals - np.median(residuals))))
 
 
 def _failed(kind: str, n: int, reason: str) -> SurfaceFit:
@@ -173,8 +185,9 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     Returns
     -------
     SurfaceFit
-        ``params``: ``center``, ``radius``. Falsy if the points are (numerically) coplanar or the radius
-        exceeds 10³ patch diagonals (a plane).
+        ``params``: ``center``, ``radius``. Falsy if degenerate: the points are coplanar, or the sagitta
+        L²/(8r) over the patch diagonal L is below the tolerance (4σ of the residuals when no tolerance is
+        given) — then it is a plane.
     """
     pts, sub, _ = _prepare(points, normals, min_count=4, need_normals=False)
     size = _extent(sub)
@@ -197,8 +210,8 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _robust(fun, x0, _scale(fun(x0), scale, size), jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
-    if radius > _HUGE * size:
-        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g} ≫ patch size {size:.3g}: a plane)")
+    if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"center": _vec(center), "radius": radius}
     return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
 
@@ -219,7 +232,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     -------
     SurfaceFit
         ``params``: ``axis_point`` (foot of the centroid on the axis), ``axis_dir``, ``radius``. Falsy if
-        degenerate (radius > 10³ patch diagonals: a plane).
+        degenerate: sagitta L²/(8r) below the tolerance (4σ of the residuals without one), i.e. a plane.
     """
     pts, sub, nrm = _prepare(points, normals, min_count=5, need_normals=True)
     size = _extent(sub)
@@ -245,8 +258,8 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
     radius = abs(float(res.x[4]))
-    if radius > _HUGE * size:
-        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g} ≫ patch size {size:.3g}: a plane)")
+    if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
     return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
 
@@ -267,8 +280,8 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     -------
     SurfaceFit
         ``params``: ``apex``, ``axis_dir`` (into the opening), ``half_angle`` (radians), ``ref_point``,
-        ``ref_radius``. Falsy when degenerate: half-angle < 0.5° or apex farther than 10³ patch diagonals
-        (a cylinder), half-angle > 89.5° (a plane).
+        ``ref_radius``. Falsy when degenerate: the radius changes by less than the tolerance (4σ of the
+        residuals without one) across the patch, or half-angle < 0.5° (a cylinder); half-angle > 89.5° (a plane).
     """
     pts, sub, nrm = _prepare(points, normals, min_count=6, need_normals=True)
     size = _extent(sub)
@@ -298,7 +311,9 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     alpha = float(res.x[5])
     if alpha < 0:  # the same cone seen from the other nappe's axis
         alpha, d = -alpha, -d
-    if alpha < _MIN_ANGLE or np.linalg.norm(apex) > _HUGE * size:
+    heights = (q - apex) @ d
+    spread = (heights.max() - heights.min()) * np.tan(alpha)  # change of radius across the patch
+    if alpha < _MIN_ANGLE or np.linalg.norm(apex) > _HUGE * size or spread < _limit_tolerance(tolerance, res.fun):
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a cylinder)")
     if alpha > np.pi / 2 - _MIN_ANGLE:
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a plane)")
@@ -347,8 +362,9 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     -------
     SurfaceFit
         ``params``: ``center``, ``axis_dir``, ``major_radius``, ``minor_radius``. Falsy when degenerate:
-        major radius < 10⁻³ patch diagonals (a sphere), major or minor radius > 10³ patch diagonals (a
-        cylinder / a plane), or major < minor (a self-intersecting spindle torus).
+        major radius below the tolerance (a sphere), sagitta L²/(8R) below the tolerance (a cylinder; the
+        tolerance is 4σ of the residuals without one), or major < minor (a self-intersecting spindle torus,
+        which B-rep faces do not want).
     """
     pts, sub, nrm = _prepare(points, normals, min_count=7, need_normals=True)
     size = _extent(sub)
@@ -376,9 +392,10 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     d = _direction(d0, e1, e2, res.x[0], res.x[1])
     center = c0 + res.x[2:5] + mean
     big, small = float(res.x[5]), float(res.x[6])
-    if big < 1e-3 * size:
+    limit = _limit_tolerance(tolerance, res.fun)
+    if big < max(1e-3 * size, limit):
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
-    if big > _HUGE * size:
+    if big > _HUGE * size or size**2 / (8 * big) < limit:
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
     if small <= 0 or small > _HUGE * size:
         return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")

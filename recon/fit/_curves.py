@@ -1,0 +1,313 @@
+"""Curve fits for the B-rep's edges: line, circle (full or arc), else a smoothing B-spline.
+
+Input points are ordered along the curve (an edge polyline). Deviations are distances to the fitted
+curve: to the infinite line, to the full circle, and to the B-spline over its domain.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import BSpline, splprep
+from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
+
+from ..errors import FitError
+from ._surfaces import as_points, perpendicular_frame
+from ._types import CurveFit, deviation_stats, within_tolerance
+
+__all__ = ["Line", "Circle", "BSplineCurve", "fit_line", "fit_circle", "fit_bspline_curve", "fit_curve", "curve_from_params"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Line:
+    """Line through ``point`` along unit ``direction``; ``start``/``end`` are the data's ends on it."""
+
+    point: np.ndarray
+    direction: np.ndarray
+
+    def evaluate(self, t) -> np.ndarray:
+        """Points (m, 3) at signed arc lengths ``t`` (m,) from ``point``."""
+        return self.point + np.atleast_1d(np.asarray(t, float))[:, None] * self.direction
+
+    def distance(self, points) -> np.ndarray:
+        """Distance (m,) to the infinite line."""
+        w = np.asarray(points, dtype=float) - self.point
+        return np.linalg.norm(w - np.outer(w @ self.direction, self.direction), axis=1)
+
+
+@dataclass(frozen=True)
+class Circle:
+    """Circle about ``center`` in the plane of unit ``normal``; angle 0 along ``x_dir``."""
+
+    center: np.ndarray
+    normal: np.ndarray
+    radius: float
+    x_dir: np.ndarray
+
+    def evaluate(self, angle) -> np.ndarray:
+        """Points (m, 3) at ``angle`` (m,) radians, counter-clockwise about ``normal``."""
+        a = np.atleast_1d(np.asarray(angle, float))[:, None]
+        y_dir = np.cross(self.normal, self.x_dir)
+        return self.center + self.radius * (np.cos(a) * self.x_dir + np.sin(a) * y_dir)
+
+    def distance(self, points) -> np.ndarray:
+        """Distance (m,) to the full circle."""
+        w = np.asarray(points, dtype=float) - self.center
+        h = w @ self.normal
+        rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+        return np.hypot(rho - self.radius, h)
+
+
+@dataclass(frozen=True)
+class BSplineCurve:
+    """Non-rational B-spline curve: ``degree``, full ``knots`` (k,), ``control_points`` (c, 3)."""
+
+    degree: int
+    knots: np.ndarray
+    control_points: np.ndarray
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        return float(self.knots[self.degree]), float(self.knots[-self.degree - 1])
+
+    @property
+    def _spline(self) -> BSpline:
+        return BSpline(self.knots, self.control_points, self.degree, extrapolate=False)
+
+    def evaluate(self, t) -> np.ndarray:
+        """Points (m, 3) at parameters ``t`` (m,), clamped to the domain."""
+        t0, t1 = self.domain
+        return self._spline(np.clip(np.atleast_1d(np.asarray(t, float)), t0, t1))
+
+    def closest_parameters(self, points, *, samples: int = 2000, iterations: int = 6) -> np.ndarray:
+        """Parameter (m,) of the closest curve point: nearest of dense samples, then Newton steps."""
+        pts = np.asarray(points, dtype=float)
+        t0, t1 = self.domain
+        grid = np.linspace(t0, t1, samples)
+        spline = self._spline
+        _, idx = cKDTree(spline(grid)).query(pts)
+        t = grid[idx]
+        d1, d2 = spline.derivative(1), spline.derivative(2)
+        for _ in range(iterations):
+            r = spline(t) - pts
+            c1, c2 = d1(t), d2(t)
+            g = np.einsum("ij,ij->i", r, c1)
+            h = np.einsum("ij,ij->i", c1, c1) + np.einsum("ij,ij->i", r, c2)
+            t = np.clip(t - g / np.where(h > 1e-300, h, 1e-300), t0, t1)
+        return t
+
+    def distance(self, points) -> np.ndarray:
+        """Distance (m,) to the curve over its domain."""
+        pts = np.asarray(points, dtype=float)
+        return np.linalg.norm(self._spline(self.closest_parameters(pts)) - pts, axis=1)
+
+
+def curve_from_params(kind: str, params: dict):
+    """Build the geometric curve of a :class:`~recon.fit.CurveFit` from its plain ``params``."""
+    a = {k: (np.asarray(v, float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
+    if kind == "line":
+        return Line(a["point"], a["direction"] / np.linalg.norm(a["direction"]))
+    if kind == "circle":
+        return Circle(a["center"], a["normal"], float(a["radius"]), a["x_dir"])
+    if kind == "bspline":
+        return BSplineCurve(int(a["degree"]), a["knots"], a["control_points"])
+    raise FitError(f"unknown curve type {kind!r}")
+
+
+def _finish(kind, params, curve, pts, tolerance, reason=""):
+    dev = deviation_stats(curve.distance(pts)) if curve is not None else deviation_stats(np.empty(0))
+    ok = not reason
+    if ok and tolerance is not None and not within_tolerance(dev, tolerance):
+        ok = False
+        reason = f"{kind}: deviation p99 {dev['p99']:.3g} / max {dev['max']:.3g} exceeds tolerance {tolerance:.3g}"
+    return CurveFit(kind, params, dev, len(pts), ok=ok, reason=reason)
+
+
+def _vec(v) -> list[float]:
+    return [float(x) for x in v]
+
+
+def fit_line(points, *, tolerance: float | None = None) -> CurveFit:
+    """Least-squares line (PCA) through ordered ``points`` (n, 3), n ≥ 2.
+
+    Returns
+    -------
+    CurveFit
+        ``params``: ``point`` (centroid), ``direction`` (from the first point towards the last),
+        ``start``, ``end`` (first and last point projected on the line).
+    """
+    pts = as_points(points, min_count=2)
+    mean = pts.mean(axis=0)
+    _, vec = np.linalg.eigh((pts - mean).T @ (pts - mean))
+    d = vec[:, 2]
+    if (pts[-1] - pts[0]) @ d < 0:
+        d = -d
+    params = {
+        "point": _vec(mean),
+        "direction": _vec(d),
+        "start": _vec(mean + ((pts[0] - mean) @ d) * d),
+        "end": _vec(mean + ((pts[-1] - mean) @ d) * d),
+    }
+    return _finish("line", params, Line(mean, d), pts, tolerance)
+
+
+def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) -> CurveFit:
+    """Circle or arc through ordered ``points`` (n, 3), n ≥ 3: plane by PCA, Kåsa circle, 3D refinement.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Ordered along the curve.
+    tolerance : float, optional
+        When given, ``ok`` also requires the acceptance rule.
+    closed : bool
+        The points go all the way round (a full circle) whatever their angular gaps.
+
+    Returns
+    -------
+    CurveFit
+        ``params``: ``center``, ``normal`` (oriented so the points run counter-clockwise), ``radius``,
+        ``x_dir`` (towards the first point), ``start_angle`` = 0, ``end_angle`` (the swept angle, or 2π),
+        ``full``. An open curve counts as a full circle when its sweep reaches 2π less one mean sample step.
+    """
+    pts = as_points(points, min_count=3)
+    mean = pts.mean(axis=0)
+    q = pts - mean
+    _, vec = np.linalg.eigh(q.T @ q)
+    n0 = vec[:, 0]
+    e1, e2 = perpendicular_frame(n0)
+    xy = np.column_stack([q @ e1, q @ e2])
+    a = np.column_stack([2 * xy, np.ones(len(xy))])
+    sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", xy, xy), rcond=None)
+    r2 = sol[2] + sol[:2] @ sol[:2]
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > 1e3 * size:
+        return CurveFit("circle", {}, deviation_stats(np.empty(0)), len(pts), ok=False, reason="circle: degenerate (collinear points: a line)")
+    c0 = sol[0] * e1 + sol[1] * e2
+
+    def fun(x):
+        nrm = n0 + x[0] * e1 + x[1] * e2
+        nrm = nrm / np.linalg.norm(nrm)
+        w = q - (c0 + x[2:5])
+        h = w @ nrm
+        rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+        return np.hypot(rho - x[5], h)
+
+    res = least_squares(fun, np.r_[0.0, 0.0, 0.0, 0.0, 0.0, np.sqrt(r2)], x_scale="jac", max_nfev=100)
+    normal = n0 + res.x[0] * e1 + res.x[1] * e2
+    normal /= np.linalg.norm(normal)
+    center = c0 + res.x[2:5] + mean
+    radius = abs(float(res.x[5]))
+    w = pts - center
+    w -= np.outer(w @ normal, normal)
+    x_dir = w[0] / np.linalg.norm(w[0])
+    ang = np.unwrap(np.arctan2(w @ np.cross(normal, x_dir), w @ x_dir))
+    if ang[-1] < ang[0]:  # run counter-clockwise about the normal
+        normal = -normal
+        ang = -ang
+    sweep = float(ang[-1] - ang[0])
+    step = abs(sweep) / max(len(pts) - 1, 1)
+    full = bool(closed or sweep >= 2 * np.pi - 1.5 * step)
+    params = {
+        "center": _vec(center),
+        "normal": _vec(normal),
+        "radius": radius,
+        "x_dir": _vec(x_dir),
+        "start_angle": 0.0,
+        "end_angle": float(2 * np.pi if full else sweep),
+        "full": full,
+    }
+    return _finish("circle", params, Circle(center, normal, radius, x_dir), pts, tolerance)
+
+
+def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree: int = 3) -> CurveFit:
+    """Smoothing cubic B-spline (FITPACK ``splprep``) through ordered ``points`` (n, 3).
+
+    The smoothing bound s (Σ residual² ≤ s) starts at 2n·(tolerance/4)² — the residual energy of noise with
+    σ = tolerance/4 (the inverse of the default-tolerance rule) in the two directions across the curve — and
+    is quartered until the acceptance rule holds (at most 6 times).
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Ordered; n ≥ degree + 2 (closed curves: do not repeat the first point).
+    tolerance : float
+    closed : bool
+        Fit a periodic spline.
+    degree : int
+        1 … 5.
+
+    Returns
+    -------
+    CurveFit
+        ``params``: ``degree``, ``knots``, ``control_points``, ``periodic``.
+    """
+    pts = as_points(points, min_count=degree + 2)
+    if not 1 <= degree <= 5:
+        raise FitError(f"`degree` must be in 1..5, got {degree}")
+    if not tolerance > 0:
+        raise FitError(f"`tolerance` must be > 0, got {tolerance}")
+    data = np.vstack([pts, pts[:1]]) if closed else pts
+    keep = np.r_[True, np.linalg.norm(np.diff(data, axis=0), axis=1) > 0]
+    data = data[keep]
+    chord = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(data, axis=0), axis=1))]
+    u = chord / chord[-1]
+    s = 2 * len(data) * (tolerance / 4.0) ** 2
+    fit = None
+    for _ in range(7):
+        try:
+            (t, c, k), _ = splprep(data.T, u=u, s=s, k=degree, per=int(closed), quiet=2)
+        except (ValueError, TypeError) as err:  # FITPACK refuses too few / degenerate points
+            return CurveFit("bspline", {}, deviation_stats(np.empty(0)), len(pts), ok=False, reason=f"bspline: {err}")
+        cp = np.column_stack(c)[: len(t) - k - 1]
+        params = {"degree": int(k), "knots": _vec(t), "control_points": cp.tolist(), "periodic": bool(closed)}
+        fit = _finish("bspline", params, BSplineCurve(int(k), np.asarray(t), cp), pts, tolerance)
+        if fit:
+            break
+        s /= 4.0
+    return fit
+
+
+def fit_curve(points, *, tolerance: float, closed: bool = False) -> CurveFit:
+    """The simplest curve within tolerance: line (open curves only) < circle < B-spline.
+
+    Parameters
+    ----------
+    points : (n, 3) float
+        Ordered along the curve, n ≥ 2; a closed curve without its first point repeated.
+    tolerance : float
+        Acceptance rule of :func:`recon.fit.within_tolerance` (p99 ≤ tol, max ≤ 2·tol).
+    closed : bool
+
+    Returns
+    -------
+    CurveFit
+        The accepted fit; when nothing fits, the candidate with the smallest p99 deviation, falsy, with the
+        reasons joined.
+    """
+    pts = as_points(points, min_count=2)
+    if not tolerance > 0:
+        raise FitError(f"`tolerance` must be > 0, got {tolerance}")
+    candidates = []
+    if not closed:
+        candidates.append(fit_line(pts, tolerance=tolerance))
+        if candidates[-1]:
+            return candidates[-1]
+    if len(pts) >= 3:
+        candidates.append(fit_circle(pts, tolerance=tolerance, closed=closed))
+        if candidates[-1]:
+            return candidates[-1]
+    if len(pts) >= 5:
+        candidates.append(fit_bspline_curve(pts, tolerance=tolerance, closed=closed))
+        if candidates[-1]:
+            return candidates[-1]
+    scored = [c for c in candidates if np.isfinite(c.deviation["p99"])]
+    if not scored:
+        raise FitError(f"`points` ({len(pts)}) are too few to fit a closed curve")
+    best = min(scored, key=lambda c: c.deviation["p99"])
+    return CurveFit(best.type, best.params, best.deviation, best.n_points, ok=False, reason="; ".join(c.reason for c in candidates))
