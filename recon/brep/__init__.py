@@ -1,3 +1,24 @@
-"""B-rep stage: the only package that imports build123d / OCP (see shared/DESIGN.md)."""
+"""B-rep stage: the only package that imports build123d / OCP (see shared/DESIGN.md).
 
-__all__: list[str] = []
+Curve network + one surface per part → a closed, valid solid (:func:`build_solid`), written as STEP
+with a name and colour per face, BREP or STL (:func:`write_shape`).
+"""
+
+from ._build import KIND_COLOURS, BrepResult, FaceRecord, Validity, build_solid, shape_validity
+from ._export import read_step_faces, write_shape
+from ._surfaces import SurfaceModel, surface_model
+from ._tessellate import labelled_tessellation
+
+__all__ = [
+    "KIND_COLOURS",
+    "BrepResult",
+    "FaceRecord",
+    "SurfaceModel",
+    "Validity",
+    "build_solid",
+    "labelled_tessellation",
+    "read_step_faces",
+    "shape_validity",
+    "surface_model",
+    "write_shape",
+]

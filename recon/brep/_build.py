@@ -1,0 +1,488 @@
+"""Curve network + one surface per part → a closed, valid OpenCascade solid.
+
+Watertight by construction: every network vertex becomes one ``TopoDS_Vertex`` and every network edge
+one ``TopoDS_Edge``, built once and used by both faces it separates (DESIGN.md, "curves"). Each face is
+its surface bounded by wires of those shared edges (``BRepBuilderAPI_MakeFace(surface, wire,
+Inside=False)`` + ``ShapeFix_Face`` for the p-curves, the recipe measured in shared/OCP-NOTES.md), then
+``BRep_Builder`` shell → ``ShapeFix_Shell`` → ``MakeSolid`` → ``ShapeFix_Solid`` → ``OrientClosedSolid``.
+A face that fails falls back to a ``BRepOffsetAPI_MakeFilling`` B-spline on its boundary edges with mesh
+points as constraints; a shell that still is not closed is sewn as a last resort.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+from OCP.BRep import BRep_Builder, BRep_Tool
+from OCP.BRepBuilderAPI import (
+    BRepBuilderAPI_MakeEdge,
+    BRepBuilderAPI_MakeFace,
+    BRepBuilderAPI_MakeSolid,
+    BRepBuilderAPI_MakeVertex,
+    BRepBuilderAPI_MakeWire,
+    BRepBuilderAPI_Sewing,
+)
+from OCP.BRepCheck import BRepCheck_Analyzer
+from OCP.BRepGProp import BRepGProp
+from OCP.BRepLib import BRepLib
+from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeFilling
+from OCP.Geom import Geom_BSplineCurve, Geom_Circle
+from OCP.GeomAbs import GeomAbs_Shape
+from OCP.GProp import GProp_GProps
+from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+from OCP.ShapeAnalysis import ShapeAnalysis_FreeBounds
+from OCP.ShapeBuild import ShapeBuild_ReShape
+from OCP.ShapeFix import ShapeFix_Face, ShapeFix_Shell, ShapeFix_Solid
+from OCP.TColgp import TColgp_Array1OfPnt
+from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shell
+
+from ..curves import OUTSIDE, CurveNetwork, EdgeCurve, NetworkGeometry, network_geometry
+from ..errors import BrepError, InputError
+from ._surfaces import SurfaceModel, surface_model
+
+__all__ = ["BrepResult", "FaceRecord", "Validity", "build_solid", "shape_validity"]
+
+log = logging.getLogger(__name__)
+
+#: Paper §4 / Figure 4: smooth patches grey, linear parts purple, junctions yellow (terminals green, §3).
+KIND_COLOURS = {
+    "patch": (0.75, 0.75, 0.75),
+    "linear": (0.58, 0.29, 0.78),
+    "junction": (0.95, 0.85, 0.15),
+    "terminal": (0.30, 0.70, 0.30),
+}
+
+
+@dataclass(frozen=True)
+class FaceRecord:
+    """One B-rep face.
+
+    ``status`` is ``"ok"`` (its own surface), ``"filled"`` (fallback B-spline by MakeFilling) or
+    ``"failed"`` (no face: the shell has a hole there); ``face`` is the ``TopoDS_Face`` in the final shape.
+    """
+
+    part: int
+    name: str
+    kind: str
+    surface_type: str
+    status: str
+    area: float
+    face: object = field(repr=False, default=None)
+    message: str = ""
+
+
+@dataclass(frozen=True)
+class Validity:
+    """What OpenCascade says about the result: the checks a user cares about ("a valid closed solid")."""
+
+    shape_type: str
+    valid: bool
+    closed: bool
+    free_edges: int
+    volume: float
+    n_faces: int
+    n_solids: int
+
+    @property
+    def ok(self) -> bool:
+        return self.valid and self.closed and self.shape_type == "solid" and self.volume > 0
+
+
+@dataclass(frozen=True)
+class BrepResult:
+    """The built B-rep.
+
+    Attributes
+    ----------
+    shape : build123d Solid, Shell or Compound
+    faces : tuple of FaceRecord
+        One per part that has a boundary, in ``network.parts`` order.
+    validity : Validity
+    geometry : NetworkGeometry
+        Where the network's vertices and edges ended up, with their gaps to the surfaces.
+    warnings : tuple of str
+    """
+
+    shape: object
+    faces: tuple
+    validity: Validity
+    geometry: NetworkGeometry
+    warnings: tuple
+
+    def face_names(self) -> list[str]:
+        return [f.name for f in self.faces if f.face is not None]
+
+
+# --------------------------------------------------------------------------------------------------
+# Checks
+# --------------------------------------------------------------------------------------------------
+
+
+def _count(shape, kind) -> int:
+    n = 0
+    exp = TopExp_Explorer(shape, kind)
+    while exp.More():
+        n += 1
+        exp.Next()
+    return n
+
+
+def free_edge_count(shape) -> int:
+    """Edges bounding only one face (``ShapeAnalysis_FreeBounds``, no sewing)."""
+    fb = ShapeAnalysis_FreeBounds(shape, False, True, False)
+    return _count(fb.GetClosedWires(), TopAbs_EDGE) + _count(fb.GetOpenWires(), TopAbs_EDGE)
+
+
+def shape_validity(shape) -> Validity:
+    """Type, validity (``BRepCheck_Analyzer``), closedness (free edges), volume of a shape."""
+    occ = getattr(shape, "wrapped", shape)
+    type_name = {TopAbs_SOLID: "solid", TopAbs_SHELL: "shell"}.get(occ.ShapeType(), "compound")
+    n_solids = _count(occ, TopAbs_SOLID)
+    if type_name == "compound" and n_solids == 0:
+        type_name = "compound"
+    props = GProp_GProps()
+    BRepGProp.VolumeProperties_s(occ, props)
+    free = free_edge_count(occ)
+    return Validity(
+        shape_type=type_name,
+        valid=bool(BRepCheck_Analyzer(occ).IsValid()),
+        closed=free == 0,
+        free_edges=free,
+        volume=float(props.Mass()),
+        n_faces=_count(occ, TopAbs_FACE),
+        n_solids=n_solids,
+    )
+
+
+def _area(face) -> float:
+    props = GProp_GProps()
+    BRepGProp.SurfaceProperties_s(face, props)
+    return float(props.Mass())
+
+
+# --------------------------------------------------------------------------------------------------
+# Edges
+# --------------------------------------------------------------------------------------------------
+
+
+def _pnt(p) -> gp_Pnt:
+    return gp_Pnt(float(p[0]), float(p[1]), float(p[2]))
+
+
+def _bspline_curve(params: dict) -> Geom_BSplineCurve:
+    ctrl = np.asarray(params["control_points"], float)
+    knots = np.asarray(params["knots"], float)
+    vals, mults = np.unique(np.round(knots, 14), return_counts=True)
+    poles = TColgp_Array1OfPnt(1, len(ctrl))
+    for i, c in enumerate(ctrl, start=1):
+        poles.SetValue(i, _pnt(c))
+    kn = TColStd_Array1OfReal(1, len(vals))
+    mu = TColStd_Array1OfInteger(1, len(vals))
+    for i, (v, m) in enumerate(zip(vals, mults), start=1):
+        kn.SetValue(i, float(v))
+        mu.SetValue(i, int(m))
+    return Geom_BSplineCurve(poles, kn, mu, int(params["degree"]))
+
+
+def _make_edge(curve: EdgeCurve, v1, v2, builder: BRep_Builder):
+    """A TopoDS_Edge on ``curve`` between the shared vertices ``v1``, ``v2``."""
+    try:
+        if curve.kind == "line":
+            mk = BRepBuilderAPI_MakeEdge(v1, v2)
+        elif curve.kind == "circle":
+            p = curve.params
+            ax = gp_Ax2(_pnt(p["center"]), gp_Dir(*map(float, p["normal"])), gp_Dir(*map(float, p["xdir"])))
+            circ = Geom_Circle(ax, float(p["radius"]))
+            # The vertices lie on the fitted circle within the fit residual: let their tolerance cover it.
+            for v, t in ((v1, p["t0"]), (v2, p["t1"])):
+                d = BRep_Tool.Pnt_s(v).Distance(circ.Value(float(t)))
+                if d > BRep_Tool.Tolerance_s(v):
+                    builder.UpdateVertex(v, 1.01 * d)
+            mk = BRepBuilderAPI_MakeEdge(circ, v1, v2, float(p["t0"]), float(p["t1"]))
+        else:
+            mk = BRepBuilderAPI_MakeEdge(_bspline_curve(curve.params), v1, v2)
+        if not mk.IsDone():
+            raise BrepError(f"BRepBuilderAPI_MakeEdge failed ({mk.Error()}) for a {curve.kind} edge")
+        return mk.Edge()
+    except BrepError:
+        raise
+    except Exception as err:
+        raise BrepError(f"could not build a {curve.kind} edge: {err}") from err
+
+
+# --------------------------------------------------------------------------------------------------
+# Faces
+# --------------------------------------------------------------------------------------------------
+
+
+def _wire(refs, edges):
+    mk = BRepBuilderAPI_MakeWire()
+    for r in refs:
+        e = edges[abs(r) - 1]
+        mk.Add(e if r > 0 else TopoDS.Edge_s(e.Reversed()))
+        if not mk.IsDone():
+            raise BrepError(f"BRepBuilderAPI_MakeWire failed ({mk.Error()}) at edge {abs(r) - 1}")
+    return mk.Wire()
+
+
+def _orientation_vote(model: SurfaceModel, points, normals) -> int:
+    """+1 if the surface's own normal agrees with the mesh's outward normals on this part, else -1."""
+    if len(points) == 0:
+        return 1
+    sn = model.signed_normals(points)
+    return 1 if float(np.sum(np.einsum("ij,ij->i", sn, normals))) >= 0 else -1
+
+
+def _face_on_surface(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context):
+    """Face on the part's own surface; wires run counter-clockwise about the surface normal."""
+    if vote < 0:
+        loops = [-r[::-1] for r in loops]
+    wires = [_wire(r, edges) for r in loops]
+    mk = BRepBuilderAPI_MakeFace(model.geom, wires[0], False)
+    if not mk.IsDone():
+        raise BrepError(f"BRepBuilderAPI_MakeFace failed ({mk.Error()})")
+    for w in wires[1:]:
+        mk.Add(w)
+    fix = ShapeFix_Face(mk.Face())
+    # ShapeFix may split a shared edge (a hole's circle at a cylinder's seam): the shared context
+    # records it so the neighbouring faces get the same pieces.
+    fix.SetContext(context)
+    fix.Perform()
+    face = TopoDS.Face_s(context.Apply(fix.Face()))
+    area = _area(face)
+    if not area > 0:
+        raise BrepError(f"face on its surface has area {area:.4g}")
+    if not BRepCheck_Analyzer(face).IsValid():
+        raise BrepError("face on its surface is not valid (BRepCheck_Analyzer)")
+    return (TopoDS.Face_s(face.Reversed()) if vote < 0 else face), area
+
+
+def _filled_face(loops: list[np.ndarray], edges, points):
+    """Fallback: a B-spline face through the boundary edges and mesh points (BRepOffsetAPI_MakeFilling)."""
+    if len(loops) != 1:
+        raise BrepError("MakeFilling fallback needs a single boundary loop")
+    fill = BRepOffsetAPI_MakeFilling()
+    for r in loops[0]:
+        fill.Add(edges[abs(r) - 1], GeomAbs_Shape.GeomAbs_C0, True)
+    for p in points[:: max(1, len(points) // 16)]:
+        fill.Add(_pnt(p))
+    fill.Build()
+    if not fill.IsDone():
+        raise BrepError("BRepOffsetAPI_MakeFilling failed")
+    face = TopoDS.Face_s(fill.Shape())
+    return face, abs(_area(face))
+
+
+# --------------------------------------------------------------------------------------------------
+# Solid
+# --------------------------------------------------------------------------------------------------
+
+
+def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
+                part_kinds: Mapping[int, str] | None = None) -> BrepResult:
+    """Build a closed, valid solid from a curve network and one surface per part.
+
+    Parameters
+    ----------
+    network : CurveNetwork
+        From :func:`recon.curves.curve_network`.
+    surfaces : mapping part id → surface
+        ``Geom_Surface`` (e.g. a true CAD surface), a ``recon.fit`` result (``.type``, ``.params``) or a
+        :class:`SurfaceModel`; a sequence indexed by part id works too.
+    tolerance : float
+        Model tolerance (model units): lines/circles are kept for edges within it; sewing uses 10× it.
+    part_kinds : mapping part id → "patch" | "linear" | "junction" | "terminal", optional
+        Names and colours faces as in the paper (``"patch_3"``, ``"linear_7"``); default ``"patch"``.
+
+    Returns
+    -------
+    BrepResult
+        A build123d ``Solid`` when closed (a ``Compound`` of solids for several bodies), a ``Shell``
+        with a warning for an open mesh. Per-face failures are records, not exceptions.
+    """
+    from build123d import Compound, Shell, Solid  # build123d wraps the result for the user
+
+    if not tolerance > 0:
+        raise InputError(f"build_solid: `tolerance` must be > 0, got {tolerance!r}")
+    if not isinstance(network, CurveNetwork):
+        raise InputError(f"build_solid: `network` must be a CurveNetwork, got {type(network).__name__}")
+    part_kinds = dict(part_kinds or {})
+    models: dict[int, SurfaceModel] = {}
+    for p in network.parts.tolist():
+        try:
+            s = surfaces[p]
+        except (KeyError, IndexError) as err:
+            raise InputError(f"build_solid: `surfaces` has no surface for part {p}") from err
+        models[p] = surface_model(s).reframed(network.part_samples(p)[0])
+    warnings: list[str] = []
+    if len(network.nonmanifold):
+        warnings.append(f"{len(network.nonmanifold)} non-manifold mesh edges were skipped")
+
+    def project(part, pts):
+        return models[part].project(pts)
+
+    geo = network_geometry(network, project, tolerance=tolerance)
+    builder = BRep_Builder()
+
+    # Shared vertices and edges: each made once.
+    vertices = []
+    for v, (p, gap) in enumerate(zip(geo.points, geo.vertex_gap)):
+        mk = BRepBuilderAPI_MakeVertex(_pnt(p))
+        vtx = mk.Vertex()
+        builder.UpdateVertex(vtx, max(1e-7, 1.01 * float(gap)))
+        vertices.append(vtx)
+    edges = []
+    for e in range(network.n_edges):
+        a, b = network.edge_vertices[e]
+        edges.append(_make_edge(geo.curves[e], vertices[a], vertices[b], builder))
+
+    open_mesh = bool(np.any(network.edge_parts[:, 1] == OUTSIDE))
+    context = ShapeBuild_ReShape()
+    records: list[FaceRecord] = []
+    faces = []
+    for p in network.parts.tolist():
+        model = models[p]
+        kind = part_kinds.get(p, "patch")
+        name = f"{kind}_{p}"
+        loops = [network.loop(j) for j in network.part_loops(p)]
+        pts, nrm = network.part_samples(p)
+        vote = _orientation_vote(model, pts, nrm)
+        try:
+            face, area = _face_on_surface(model, loops, edges, vote, context)
+            status, msg = "ok", ""
+        except BrepError as err:
+            log.info("part %d (%s): %s; trying MakeFilling", p, model.kind, err)
+            try:
+                face, area = _filled_face(loops, edges, pts)
+                status, msg = "filled", str(err)
+                warnings.append(f"{name}: {model.kind} face failed ({err}); replaced by a filling B-spline")
+            except BrepError as err2:
+                face, area, status, msg = None, 0.0, "failed", f"{err}; {err2}"
+                warnings.append(f"{name}: no face ({msg})")
+        records.append(FaceRecord(p, name, kind, model.kind, status, area, face, msg))
+        if face is not None:
+            faces.append(face)
+
+    # Faces built before a later ShapeFix split one of their edges get the pieces now.
+    faces = [TopoDS.Face_s(context.Apply(f)) for f in faces]
+    records = [FaceRecord(r.part, r.name, r.kind, r.surface_type, r.status, r.area,
+                          None if r.face is None else TopoDS.Face_s(context.Apply(r.face)), r.message) for r in records]
+    shape = _assemble(faces, tolerance, open_mesh, warnings)
+    # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
+    final_faces = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        final_faces.append(TopoDS.Face_s(exp.Current()))
+        exp.Next()
+    records = _match_faces(records, final_faces, network)
+
+    validity = shape_validity(shape)
+    if open_mesh:
+        warnings.append("the mesh is open: the result is a shell, not a solid")
+    elif not validity.ok:
+        warnings.append(f"result is not a valid closed solid: {validity}")
+    for w in warnings:
+        log.warning("build_solid: %s", w)
+
+    wrapped = {TopAbs_SOLID: Solid, TopAbs_SHELL: Shell}.get(shape.ShapeType(), Compound)(shape)
+    return BrepResult(shape=wrapped, faces=tuple(records), validity=validity, geometry=geo,
+                      warnings=tuple(warnings))
+
+
+def _assemble(faces, tolerance, open_mesh, warnings):
+    builder = BRep_Builder()
+    shell = TopoDS_Shell()
+    builder.MakeShell(shell)
+    for f in faces:
+        builder.Add(shell, f)
+    if free_edge_count(shell) > 0 and not open_mesh:
+        # Faces that did not use the shared edges (fillings, failures): sew as the last resort.
+        sew = BRepBuilderAPI_Sewing(10 * tolerance)
+        for f in faces:
+            sew.Add(f)
+        sew.Perform()
+        sewn = sew.SewedShape()
+        shells = []
+        exp = TopExp_Explorer(sewn, TopAbs_SHELL)
+        while exp.More():
+            shells.append(TopoDS.Shell_s(exp.Current()))
+            exp.Next()
+        warnings.append(f"shell had free edges; sewn at {10 * tolerance:g}")
+        if len(shells) == 1:
+            shell = shells[0]
+    fix = ShapeFix_Shell(shell)
+    fix.Perform()
+    fixed = fix.Shape()
+    shells = []
+    exp = TopExp_Explorer(fixed, TopAbs_SHELL)
+    while exp.More():
+        shells.append(TopoDS.Shell_s(exp.Current()))
+        exp.Next()
+    if not shells:
+        raise BrepError("ShapeFix_Shell returned no shell")
+    if open_mesh:
+        return shells[0] if len(shells) == 1 else fixed
+    solids = []
+    for sh in shells:
+        if free_edge_count(sh) > 0:
+            warnings.append(f"a shell with {free_edge_count(sh)} free edges is left as a shell")
+            solids.append(sh)
+            continue
+        mk = BRepBuilderAPI_MakeSolid(sh)
+        if not mk.IsDone():
+            raise BrepError("BRepBuilderAPI_MakeSolid failed")
+        sf = ShapeFix_Solid(mk.Solid())
+        sf.Perform()
+        fixed_solid = sf.Solid()
+        if fixed_solid.ShapeType() != TopAbs_SOLID:
+            raise BrepError(f"ShapeFix_Solid returned a {fixed_solid.ShapeType()} instead of a solid")
+        solid = TopoDS.Solid_s(fixed_solid)
+        if not BRepLib.OrientClosedSolid_s(solid):
+            warnings.append("BRepLib.OrientClosedSolid could not orient the solid")
+        solids.append(solid)
+    if len(solids) == 1:
+        return solids[0]
+    comp = TopoDS_Compound()
+    builder.MakeCompound(comp)
+    for s in solids:
+        builder.Add(comp, s)
+    warnings.append(f"{len(solids)} bodies: the result is a compound")
+    return comp
+
+
+def _match_faces(records, final_faces, network):
+    """Attach each record to its face in the final shape: same TShape first, else nearest sample point."""
+    out = []
+    taken = set()
+    for rec in records:
+        match = None
+        if rec.face is not None:
+            for i, f in enumerate(final_faces):
+                if i not in taken and f.IsSame(rec.face):
+                    match = i
+                    break
+        if match is None and rec.face is not None:
+            from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+
+            pts, _ = network.part_samples(rec.part)
+            if len(pts):
+                vtx = BRepBuilderAPI_MakeVertex(_pnt(pts[len(pts) // 2])).Vertex()
+                best = None
+                for i, f in enumerate(final_faces):
+                    if i in taken:
+                        continue
+                    d = BRepExtrema_DistShapeShape(vtx, f)
+                    if d.IsDone() and (best is None or d.Value() < best[0]):
+                        best = (d.Value(), i)
+                match = best[1] if best else None
+        if match is not None:
+            taken.add(match)
+        face = final_faces[match] if match is not None else None
+        out.append(FaceRecord(rec.part, rec.name, rec.kind, rec.surface_type, rec.status, rec.area, face, rec.message))
+    return out

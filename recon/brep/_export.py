@@ -1,0 +1,199 @@
+"""Writing the B-rep: STEP AP242 with a name and colour per face (XCAF), BREP, STL.
+
+Per-face names and colours survive a STEP round trip only through XCAF sub-shapes (measured, see
+shared/OCP-NOTES.md): ``XCAFDoc_ShapeTool.AddSubShape`` + ``TDataStd_Name`` + ``XCAFDoc_ColorTool.SetColor(...,
+XCAFDoc_ColorSurf)``, a writer with name and colour modes, and ``write.stepcaf.subshapes.name`` = 1.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+from pathlib import Path
+
+from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.BRepTools import BRepTools
+from OCP.IFSelect import IFSelect_ReturnStatus
+from OCP.Interface import Interface_Static
+from OCP.Message import Message, Message_Gravity
+from OCP.Quantity import Quantity_Color, Quantity_TypeOfColor
+from OCP.StlAPI import StlAPI_Writer
+from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader, STEPCAFControl_Writer
+from OCP.STEPControl import STEPControl_Controller, STEPControl_StepModelType
+from OCP.TCollection import TCollection_ExtendedString
+from OCP.TDataStd import TDataStd_Name
+from OCP.TDF import TDF_Label, TDF_LabelSequence
+from OCP.TDocStd import TDocStd_Document
+from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
+
+from .._io import atomic_path
+from ..errors import ExportError, InputError
+from ._build import KIND_COLOURS, BrepResult
+
+__all__ = ["read_step_faces", "write_shape"]
+
+log = logging.getLogger(__name__)
+
+_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".stl")
+
+
+@contextlib.contextmanager
+def _static(settings: dict):
+    """Set OCC ``Interface_Static`` values for one write, and put the old ones back (they are process-global)."""
+    # The controllers define (and on first use reset) the statics: initialise them before setting any.
+    STEPControl_Controller.Init_s()
+    STEPCAFControl_Controller.Init_s()
+    old = {}
+    for key, val in settings.items():
+        if isinstance(val, int):
+            old[key] = Interface_Static.IVal_s(key)
+            Interface_Static.SetIVal_s(key, val)
+        else:
+            old[key] = Interface_Static.CVal_s(key)
+            Interface_Static.SetCVal_s(key, val)
+    try:
+        yield
+    finally:
+        for key, val in old.items():
+            if isinstance(val, int):
+                Interface_Static.SetIVal_s(key, val)
+            else:
+                Interface_Static.SetCVal_s(key, val)
+
+
+@contextlib.contextmanager
+def _quiet():
+    """OCC's default messenger prints transfer statistics to stdout; the library never prints."""
+    printers = list(Message.DefaultMessenger_s().Printers())
+    old = [pr.GetTraceLevel() for pr in printers]
+    for pr in printers:
+        pr.SetTraceLevel(Message_Gravity.Message_Fail)
+    try:
+        yield
+    finally:
+        for pr, lvl in zip(printers, old):
+            pr.SetTraceLevel(lvl)
+
+
+def _occ(shape):
+    return getattr(shape, "wrapped", shape)
+
+
+def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
+    shape_tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    colour_tool = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
+    root = shape_tool.AddShape(_occ(result.shape), False)
+    TDataStd_Name.Set_s(root, TCollection_ExtendedString(name))
+    for rec in result.faces:
+        if rec.face is None:
+            continue
+        sub = shape_tool.AddSubShape(root, rec.face)
+        if sub.IsNull():
+            log.warning("write_shape: face %s is not a sub-shape of the result; not named", rec.name)
+            continue
+        TDataStd_Name.Set_s(sub, TCollection_ExtendedString(rec.name))
+        r, g, b = KIND_COLOURS.get(rec.kind, KIND_COLOURS["patch"])
+        colour_tool.SetColor(sub, Quantity_Color(r, g, b, Quantity_TypeOfColor.Quantity_TOC_RGB),
+                             XCAFDoc_ColorType.XCAFDoc_ColorSurf)
+    settings = {"write.stepcaf.subshapes.name": 1, "write.step.schema": "AP242DIS", "write.step.unit": "MM"}
+    with _static(settings), _quiet():
+        writer = STEPCAFControl_Writer()
+        writer.SetNameMode(True)
+        writer.SetColorMode(True)
+        if not writer.Transfer(doc, STEPControl_StepModelType.STEPControl_AsIs):
+            raise ExportError(f"cannot write {tmp.name}: STEPCAFControl_Writer.Transfer failed")
+        status = writer.Write(str(tmp))
+    if status != IFSelect_ReturnStatus.IFSelect_RetDone:
+        raise ExportError(f"cannot write STEP: writer returned {status}")
+
+
+def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "recon", deflection: float = 0.01) -> Path:
+    """Write a B-rep result; the format follows the extension (.step/.stp, .brep, .stl).
+
+    Parameters
+    ----------
+    path : path-like
+        Output file; written atomically (a temporary name, renamed on success).
+    result : BrepResult
+        From :func:`recon.brep.build_solid`.
+    name : str
+        Product name in the STEP file.
+    deflection : float
+        Linear deflection of the STL tessellation (model units).
+
+    Returns
+    -------
+    Path
+        The written path.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in _SUFFIXES:
+        raise InputError(f"write_shape: `path` must end in one of {', '.join(_SUFFIXES)}, got {path.name!r}")
+    if not isinstance(result, BrepResult):
+        raise InputError(f"write_shape: `result` must be a BrepResult, got {type(result).__name__}")
+    occ = _occ(result.shape)
+    with atomic_path(path) as tmp:
+        if suffix in (".step", ".stp"):
+            _write_step(tmp, result, name)
+        elif suffix in (".brep", ".brp"):
+            if not BRepTools.Write_s(occ, str(tmp)):
+                raise ExportError(f"cannot write {path}: BRepTools.Write failed")
+        else:
+            mesher = BRepMesh_IncrementalMesh(occ, float(deflection), False, 0.3, True)
+            if not mesher.IsDone():
+                raise ExportError(f"cannot write {path}: tessellation failed")
+            if not StlAPI_Writer().Write(occ, str(tmp)):
+                raise ExportError(f"cannot write {path}: StlAPI_Writer failed")
+    log.info("wrote %s", path)
+    return path
+
+
+def _label_name(label: TDF_Label) -> str | None:
+    attr = TDataStd_Name()
+    # FindAttribute on a missing attribute has crashed the process (OCP-NOTES): ask first.
+    if not label.IsAttribute(TDataStd_Name.GetID_s()):
+        return None
+    if label.FindAttribute(TDataStd_Name.GetID_s(), attr):
+        return attr.Get().ToExtString()
+    return None
+
+
+def read_step_faces(path: str | os.PathLike) -> list[tuple[str | None, tuple[float, float, float] | None]]:
+    """Names and surface colours of the face sub-shapes of a STEP file, read back through XCAF.
+
+    Returns
+    -------
+    list of (name, (r, g, b) or None)
+        One entry per face sub-shape label of every free shape, in file order.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"read_step_faces: `path` {path} is not a file")
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
+    reader = STEPCAFControl_Reader()
+    reader.SetNameMode(True)
+    reader.SetColorMode(True)
+    with _static({"read.stepcaf.subshapes.name": 1}), _quiet():
+        if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
+            raise InputError(f"read_step_faces: cannot read {path} as STEP")
+        if not reader.Transfer(doc):
+            raise InputError(f"read_step_faces: cannot transfer {path}")
+    shape_tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    colour_tool = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
+    free = TDF_LabelSequence()
+    shape_tool.GetFreeShapes(free)
+    out = []
+    for i in range(1, free.Length() + 1):
+        subs = TDF_LabelSequence()
+        shape_tool.GetSubShapes_s(free.Value(i), subs)
+        for j in range(1, subs.Length() + 1):
+            lab = subs.Value(j)
+            colour = Quantity_Color()
+            rgb = None
+            if colour_tool.GetColor_s(lab, XCAFDoc_ColorType.XCAFDoc_ColorSurf, colour):
+                rgb = (colour.Red(), colour.Green(), colour.Blue())
+            out.append((_label_name(lab), rgb))
+    return out

@@ -1,0 +1,104 @@
+"""A CAD shape as a labelled triangle mesh with its true surfaces: ground truth for the B-rep stage."""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from OCP.BRep import BRep_Tool
+from OCP.BRepMesh import BRepMesh_IncrementalMesh
+from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+from OCP.TopExp import TopExp_Explorer
+from OCP.TopLoc import TopLoc_Location
+from OCP.TopoDS import TopoDS
+from scipy.spatial import cKDTree
+
+from ..errors import BrepError, InputError
+
+__all__ = ["labelled_tessellation"]
+
+log = logging.getLogger(__name__)
+
+
+def _wrapped(shape):
+    return getattr(shape, "wrapped", shape)
+
+
+def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, weld: float = 1e-7):
+    """Tessellate every face of ``shape`` and label each triangle by its face.
+
+    Parameters
+    ----------
+    shape : build123d Shape or TopoDS_Shape
+    deflection : float
+        Linear deflection of the tessellation (model units).
+    angular : float
+        Angular deflection in radians.
+    weld : float
+        Vertices closer than this are merged (OpenCascade meshes shared edges identically on both faces).
+
+    Returns
+    -------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+        Oriented outward (the face orientation is applied).
+    labels : (m,) int
+        Index of the face (in ``TopExp_Explorer`` order) each triangle came from.
+    surfaces : list of Geom_Surface
+        The true surface of each face (location applied), indexed by label.
+    """
+    if not deflection > 0:
+        raise InputError(f"labelled_tessellation: `deflection` must be > 0, got {deflection!r}")
+    occ = _wrapped(shape)
+    mesher = BRepMesh_IncrementalMesh(occ, float(deflection), False, float(angular), True)
+    if not mesher.IsDone():
+        raise BrepError("labelled_tessellation: BRepMesh_IncrementalMesh failed")
+    verts, tris, labels, surfaces = [], [], [], []
+    base = 0
+    exp = TopExp_Explorer(occ, TopAbs_FACE)
+    label = 0
+    while exp.More():
+        face = TopoDS.Face_s(exp.Current())
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None:
+            raise BrepError(f"labelled_tessellation: face {label} has no triangulation")
+        trsf = loc.Transformation()
+        nodes = np.array([[(p := tri.Node(i).Transformed(trsf)).X(), p.Y(), p.Z()]
+                          for i in range(1, tri.NbNodes() + 1)])
+        t = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
+        if face.Orientation() == TopAbs_REVERSED:
+            t = t[:, [0, 2, 1]]
+        verts.append(nodes)
+        tris.append(t + base)
+        labels.append(np.full(len(t), label, dtype=np.int64))
+        surf = BRep_Tool.Surface_s(face)  # with the face's location applied
+        surfaces.append(surf)
+        base += len(nodes)
+        label += 1
+        exp.Next()
+    if not verts:
+        raise InputError("labelled_tessellation: `shape` has no faces")
+    v = np.concatenate(verts)
+    f = np.concatenate(tris)
+    lab = np.concatenate(labels)
+    # Weld: union of near-coincident vertices, representative = smallest index.
+    pairs = cKDTree(v).query_pairs(weld, output_type="ndarray")
+    rep = np.arange(len(v))
+    for a, b in sorted(map(tuple, pairs.tolist())):
+        ra, rb = rep[a], rep[b]
+        while rep[ra] != ra:
+            ra = rep[ra]
+        while rep[rb] != rb:
+            rb = rep[rb]
+        if ra != rb:
+            rep[max(ra, rb)] = min(ra, rb)
+    for i in range(len(rep)):
+        r = i
+        while rep[r] != r:
+            r = rep[r]
+        rep[i] = r
+    keep, inverse = np.unique(rep, return_inverse=True)
+    f = inverse[f]
+    good = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
+    return v[keep], f[good], lab[good], surfaces

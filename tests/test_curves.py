@@ -1,0 +1,148 @@
+"""Curve network from labelled meshes: topology counts with exact answers, invariances, awkward inputs."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from recon.curves import OUTSIDE, curve_network, fit_edge_curve, meeting_point
+from recon.errors import InputError
+
+
+def _box():
+    m = trimesh.creation.box((2.0, 3.0, 4.0))
+    n = m.face_normals
+    axis = np.argmax(np.abs(n), axis=1)
+    labels = axis * 2 + (n[np.arange(len(n)), axis] > 0)
+    return np.asarray(m.vertices), np.asarray(m.faces), labels.astype(np.int64)
+
+
+def _annulus(r_in=1.0, r_out=2.0, height=1.0):
+    m = trimesh.creation.annulus(r_min=r_in, r_max=r_out, height=height, sections=48)
+    n = m.face_normals
+    c = m.triangles_center
+    rad = np.hypot(c[:, 0], c[:, 1])
+    labels = np.where(n[:, 2] > 0.9, 0, np.where(n[:, 2] < -0.9, 1, np.where(rad > 0.5 * (r_in + r_out), 2, 3)))
+    return np.asarray(m.vertices), np.asarray(m.faces), labels.astype(np.int64), m
+
+
+def _edge_uses(net):
+    uses = {}
+    for j in range(len(net.loop_part)):
+        for r in net.loop(j).tolist():
+            uses.setdefault(abs(r) - 1, []).append((int(net.loop_part[j]), int(np.sign(r))))
+    return uses
+
+
+def test_box_network_counts():
+    v, f, lab = _box()
+    net = curve_network(v, f, lab)
+    # A box: 8 corners where 3 faces meet, 12 edges, 6 faces each bounded by one loop of 4 edges.
+    assert net.n_vertices == 8
+    assert net.n_edges == 12
+    assert net.parts.tolist() == list(range(6))
+    assert len(net.loop_part) == 6 and net.loop_outer.all()
+    assert all(len(net.loop(j)) == 4 for j in range(6))
+    # Every edge is used by exactly its two parts, once forward and once reversed (watertight topology).
+    for e, uses in _edge_uses(net).items():
+        assert sorted(p for p, _ in uses) == sorted(net.edge_parts[e].tolist())
+        assert sorted(s for _, s in uses) == [-1, 1]
+    # Each loop is closed: every edge ends where the next one starts.
+    for j in range(6):
+        refs = net.loop(j)
+        ends = [net.edge_vertices[abs(r) - 1][::1 if r > 0 else -1] for r in refs]
+        assert all(ends[i][1] == ends[(i + 1) % 4][0] for i in range(4))
+    # Polylines start and end at their network vertices.
+    for e in range(net.n_edges):
+        a, b = net.edge_vertices[e]
+        assert np.array_equal(net.polyline(e)[0], net.points[a])
+        assert np.array_equal(net.polyline(e)[-1], net.points[b])
+
+
+def test_box_network_invariant_under_face_permutation():
+    v, f, lab = _box()
+    perm = np.random.default_rng(0).permutation(len(f))
+    a = curve_network(v, f, lab)
+    b = curve_network(v, f[perm], lab[perm])
+    assert (a.n_vertices, a.n_edges) == (b.n_vertices, b.n_edges)
+    assert sorted(map(tuple, a.edge_parts.tolist())) == sorted(map(tuple, b.edge_parts.tolist()))
+
+
+def test_hole_loop_is_inner():
+    v, f, lab, mesh = _annulus()
+    net = curve_network(v, f, lab)
+    # Top, bottom, outer wall, hole wall; four circles, each a closed edge on one anchor vertex.
+    assert net.n_edges == 4 and net.n_vertices == 4
+    assert np.all(net.edge_vertices[:, 0] == net.edge_vertices[:, 1])
+    top = net.part_loops(0)
+    assert len(top) == 2
+    outer, inner = top
+    assert net.loop_outer[outer] and not net.loop_outer[inner]
+    radius = lambda j: np.hypot(*net.polyline(abs(net.loop(j)[0]) - 1)[:, :2].T).mean()  # noqa: E731
+    assert radius(outer) == pytest.approx(2.0, rel=1e-9)
+    assert radius(inner) == pytest.approx(1.0, rel=1e-9)
+
+
+def test_open_mesh_boundary_edges_have_outside():
+    v, f, lab = _box()
+    keep = lab != 5
+    net = curve_network(v, f[keep], lab[keep])
+    # Removing one face leaves its 4 edges as open boundary: parts [p, OUTSIDE].
+    assert net.n_edges == 12 and net.n_vertices == 8
+    assert int(np.sum(net.edge_parts[:, 1] == OUTSIDE)) == 4
+    assert not np.any(net.edge_parts[:, 0] == OUTSIDE)
+
+
+def test_nonmanifold_edge_reported_and_skipped():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1.0]])
+    f = np.array([[0, 1, 2], [1, 0, 3], [0, 1, 4]])
+    net = curve_network(v, f, np.array([0, 1, 2]))
+    assert net.nonmanifold.tolist() == [[0, 1]]
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        (np.zeros((3, 2)), np.array([[0, 1, 2]]), np.array([0])),
+        (np.zeros((3, 3)), np.array([[0, 1, 3]]), np.array([0])),
+        (np.zeros((3, 3)), np.array([[0, 1, 2]]), np.array([0, 1])),
+        (np.zeros((3, 3)), np.array([[0, 1, 2]]), np.array([-2])),
+        (np.zeros((3, 3)), np.empty((0, 3), int), np.empty(0, int)),
+    ],
+)
+def test_bad_input_raises(args):
+    with pytest.raises(InputError):
+        curve_network(*args)
+
+
+def test_fit_edge_curve_recovers_line_circle_and_pins_spline():
+    t = np.linspace(0, 1, 20)
+    line = np.outer(t, [3.0, 4.0, 0.0]) + [1, 2, 3]
+    c = fit_edge_curve(line, closed=False, tolerance=1e-6)
+    assert c.kind == "line" and c.residual < 1e-12
+
+    ang = np.linspace(0.2, 1.7, 30)
+    arc = np.stack([5 + 2.5 * np.cos(ang), -1 + 2.5 * np.sin(ang), np.full_like(ang, 7.0)], 1)
+    c = fit_edge_curve(arc, closed=False, tolerance=1e-6)
+    assert c.kind == "circle"
+    assert c.params["radius"] == pytest.approx(2.5, rel=1e-9)
+    assert np.allclose(c.params["center"], [5, -1, 7], atol=1e-9)
+    assert c.params["t1"] - c.params["t0"] == pytest.approx(1.5, abs=1e-9)
+
+    helix = np.stack([np.cos(3 * t), np.sin(3 * t), 2 * t], 1)
+    c = fit_edge_curve(helix, closed=False, tolerance=1e-4)
+    assert c.kind == "bspline" and c.residual <= 1e-4
+    ctrl = c.params["control_points"]
+    assert np.array_equal(ctrl[0], helix[0]) and np.array_equal(ctrl[-1], helix[-1])
+
+
+def test_meeting_point_of_three_planes():
+    normals = np.array([[1.0, 0, 0], [0, 1.0, 0], [1.0, 1.0, 1.0]]) / np.array([[1], [1], [np.sqrt(3)]])
+    offsets = np.array([1.0, 2.0, 6.0 / np.sqrt(3)])  # x = 1, y = 2, x + y + z = 6 → (1, 2, 3)
+
+    def project(part, pts):
+        n = normals[part]
+        return pts - np.outer(pts @ n - offsets[part], n), np.broadcast_to(n, pts.shape)
+
+    x, gap = meeting_point([0.7, 2.4, 2.5], [0, 1, 2], project)
+    assert np.allclose(x, [1, 2, 3], atol=1e-6)
+    assert gap < 1e-6
