@@ -281,7 +281,8 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     SurfaceFit
         ``params``: ``apex``, ``axis_dir`` (into the opening), ``half_angle`` (radians), ``ref_point``,
         ``ref_radius``. Falsy when degenerate: the radius changes by less than the tolerance (4σ of the
-        residuals without one) across the patch, or half-angle < 0.5° (a cylinder); half-angle > 89.5° (a plane).
+        residuals without one) across the patch, half-angle < 0.5°, or the cone is not significantly better
+        than the best cylinder (χ²₁ test; a cylinder); half-angle > 89.5° (a plane).
     """
     pts, sub, nrm = _prepare(points, normals, min_count=6, need_normals=True)
     size = _extent(sub)
@@ -315,6 +316,8 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     spread = (heights.max() - heights.min()) * np.tan(alpha)  # change of radius across the patch
     if alpha < _MIN_ANGLE or np.linalg.norm(apex) > _HUGE * size or spread < _limit_tolerance(tolerance, res.fun):
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a cylinder)")
+    if not _better_than_cylinder(q, nrm, cone_distance(q, apex, d, alpha)):
+        return _failed("cone", len(pts), "degenerate (not significantly better than a cylinder)")
     if alpha > np.pi / 2 - _MIN_ANGLE:
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a plane)")
     if np.median((q - apex) @ d) < 0:
@@ -329,6 +332,22 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
         "ref_radius": float(h * np.tan(alpha)),
     }
     return _finish("cone", params, Cone(apex, d, alpha), pts, tolerance)
+
+
+def _better_than_cylinder(q: np.ndarray, nrm: np.ndarray, cone_residuals: np.ndarray) -> bool:
+    """Likelihood-ratio test of the cone's one extra parameter against the best cylinder.
+
+    On cylinder data the cone's optimum runs off to an apex at infinity along a flat valley and stops
+    anywhere on it. Keep the cone only if it lowers the residual sum of squares by more than 10 σ̂²
+    (χ²₁ > 10: p ≈ 0.002).
+    """
+    cyl = fit_cylinder(q, nrm)
+    if not cyl:
+        return True
+    ss_cone = float(cone_residuals @ cone_residuals)
+    d_cyl = cyl.distance(q)
+    ss_cyl = float(d_cyl @ d_cyl)
+    return ss_cyl - ss_cone > 10.0 * ss_cone / max(len(q) - 6, 1)
 
 
 def _revolution_axis(q: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:

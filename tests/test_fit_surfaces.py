@@ -1,0 +1,383 @@
+"""Surface fits against known answers.
+
+Parameter bounds are 5 × the Cramér–Rao standard deviation: for Gaussian noise σ on the distances, a
+least-squares fit's parameters have covariance ≈ σ² (JᵀJ)⁻¹, J the Jacobian of the signed distances of the
+noise-free points with respect to a minimal parametrisation at the truth. That is the "σ/√n × C" of the
+brief with C computed for the actual patch (a 90° sector correlates radius and axis, inflating C). A 5σ
+bound fails by chance with probability < 10⁻⁶ per scalar (soft-l1 is ~95 % efficient, which 5σ absorbs);
+for a 3-vector, |Δ|² ≤ 25·trace(cov) fails with probability ≈ P(χ²₃ > 25) ≈ 2·10⁻⁵.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.interpolate import BSpline
+
+from recon.errors import FitError
+from recon.fit import (
+    Cone,
+    Cylinder,
+    Plane,
+    Sphere,
+    Torus,
+    default_tolerance,
+    fit_bspline_surface,
+    fit_cone,
+    fit_cylinder,
+    fit_plane,
+    fit_rolling_ball,
+    fit_sphere,
+    fit_surface,
+    fit_torus,
+    noise_sigma,
+    ruled_surface,
+)
+from recon.fit._bspline import basis_functions
+from recon.fit._surfaces import perpendicular_frame
+from recon.fit._synthetic import (
+    add_noise,
+    random_rotation,
+    sample_cone,
+    sample_cylinder,
+    sample_plane,
+    sample_sphere,
+    sample_torus,
+)
+
+SIGMA = 0.02
+TOL = 4 * SIGMA
+N = 1500  # below MAX_FIT_POINTS, so the fit uses every point and the bound applies as computed
+
+
+def _posed(sampler, rng, n=N, sigma=SIGMA, **kw):
+    """Sample in a canonical pose, then move rigidly: returns noisy points, true normals, rotation, shift."""
+    pts, nrm = sampler(n, rng, **kw)
+    rot = random_rotation(rng)
+    shift = rng.uniform(-50, 50, size=3)
+    return pts, add_noise(pts @ rot.T + shift, sigma, rng), nrm @ rot.T, rot, shift
+
+
+def _crlb(residual, theta, sigma=SIGMA, h=1e-6):
+    """σ² (JᵀJ)⁻¹ with J by central differences of ``residual`` at ``theta``."""
+    theta = np.asarray(theta, float)
+    cols = []
+    for i in range(len(theta)):
+        e = np.zeros_like(theta)
+        e[i] = h
+        cols.append((residual(theta + e) - residual(theta - e)) / (2 * h))
+    j = np.column_stack(cols)
+    return sigma**2 * np.linalg.inv(j.T @ j)
+
+
+def _direction(d0, x):
+    e1, e2 = perpendicular_frame(d0)
+    d = d0 + x[0] * e1 + x[1] * e2
+    return d / np.linalg.norm(d), e1, e2
+
+
+def _angle(a, b):
+    return float(np.arccos(np.clip(abs(np.dot(a, b)) / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
+
+
+# ------------------------------------------------------------------------------------------ parameters
+
+
+@pytest.mark.parametrize("with_normals", [True, False])
+def test_plane_recovers_normal_and_offset(with_normals):
+    rng = np.random.default_rng(1)
+    clean, pts, nrm, rot, shift = _posed(sample_plane, rng)
+    fit = fit_plane(pts, nrm if with_normals else None, tolerance=TOL)
+    assert fit and fit.type == "plane"
+    n_true = rot[:, 2]
+    clean = clean @ rot.T + shift
+    cov = _crlb(lambda x: Plane(shift + x[2] * n_true, _direction(n_true, x)[0]).distance(clean), [0, 0, 0])
+    n_fit = np.array(fit.params["normal"])
+    assert _angle(n_fit, n_true) <= 5 * np.sqrt(cov[0, 0] + cov[1, 1])
+    offset = (np.array(fit.params["origin"]) - shift) @ n_true
+    assert abs(offset) <= 5 * np.sqrt(cov[2, 2]) + 1e-12
+
+
+@pytest.mark.parametrize("with_normals", [True, False])
+def test_sphere_recovers_centre_and_radius(with_normals):
+    rng = np.random.default_rng(2)
+    clean, pts, nrm, rot, shift = _posed(sample_sphere, rng, radius=10.0)
+    fit = fit_sphere(pts, nrm if with_normals else None, tolerance=TOL)
+    assert fit
+    cov = _crlb(lambda x: Sphere(shift + x[:3], x[3]).distance(clean @ rot.T + shift), [0, 0, 0, 10.0])
+    assert abs(fit.params["radius"] - 10.0) <= 5 * np.sqrt(cov[3, 3])
+    assert np.sum((np.array(fit.params["center"]) - shift) ** 2) <= 25 * np.trace(cov[:3, :3])
+
+
+@pytest.mark.parametrize("with_normals", [True, False])
+def test_cylinder_sector_recovers_axis_and_radius(with_normals):
+    rng = np.random.default_rng(3)
+    clean, pts, nrm, rot, shift = _posed(sample_cylinder, rng, radius=10.0, theta=(0, np.pi / 2))
+    fit = fit_cylinder(pts, nrm if with_normals else None, tolerance=TOL)
+    assert fit
+    d_true = rot[:, 2]
+    clean = clean @ rot.T + shift
+    foot = shift + ((clean.mean(axis=0) - shift) @ d_true) * d_true  # true axis point at the centroid's height
+
+    def residual(x):
+        d, e1, e2 = _direction(d_true, x[:2])
+        return Cylinder(foot + x[2] * e1 + x[3] * e2, d, x[4]).distance(clean)
+
+    cov = _crlb(residual, [0, 0, 0, 0, 10.0])
+    assert abs(fit.params["radius"] - 10.0) <= 5 * np.sqrt(cov[4, 4])
+    assert _angle(fit.params["axis_dir"], d_true) <= 5 * np.sqrt(cov[0, 0] + cov[1, 1])
+    # the fitted axis point is the foot of the same centroid: compare across the axis
+    off = np.array(fit.params["axis_point"]) - foot
+    off -= (off @ d_true) * d_true
+    assert off @ off <= 25 * (cov[2, 2] + cov[3, 3])
+
+
+@pytest.mark.parametrize("with_normals", [True, False])
+def test_cone_sector_recovers_apex_axis_and_angle(with_normals):
+    rng = np.random.default_rng(4)
+    alpha = np.deg2rad(30)
+    clean, pts, nrm, rot, shift = _posed(sample_cone, rng, half_angle=alpha)
+    fit = fit_cone(pts, nrm if with_normals else None, tolerance=TOL)
+    assert fit
+    d_true = rot[:, 2]
+    clean = clean @ rot.T + shift
+    cov = _crlb(lambda x: Cone(shift + x[2:5], _direction(d_true, x[:2])[0], x[5]).distance(clean), [0, 0, 0, 0, 0, alpha])
+    assert abs(fit.params["half_angle"] - alpha) <= 5 * np.sqrt(cov[5, 5])
+    assert np.dot(fit.params["axis_dir"], d_true) > 0  # into the opening
+    assert _angle(fit.params["axis_dir"], d_true) <= 5 * np.sqrt(cov[0, 0] + cov[1, 1])
+    assert np.sum((np.array(fit.params["apex"]) - shift) ** 2) <= 25 * np.trace(cov[2:5, 2:5])
+    # ref_point/ref_radius describe the same cone
+    ref = np.array(fit.params["ref_point"]) - np.array(fit.params["apex"])
+    assert fit.params["ref_radius"] == pytest.approx(np.linalg.norm(ref) * np.tan(fit.params["half_angle"]), rel=1e-9)
+
+
+@pytest.mark.parametrize("with_normals", [True, False])
+def test_torus_sector_recovers_radii_and_centre(with_normals):
+    rng = np.random.default_rng(5)
+    clean, pts, nrm, rot, shift = _posed(sample_torus, rng, major=10.0, minor=3.0, theta=(0, np.pi / 2), phi=(0, np.pi))
+    fit = fit_torus(pts, nrm if with_normals else None, tolerance=TOL)
+    assert fit
+    d_true = rot[:, 2]
+    clean = clean @ rot.T + shift
+    cov = _crlb(
+        lambda x: Torus(shift + x[2:5], _direction(d_true, x[:2])[0], x[5], x[6]).distance(clean),
+        [0, 0, 0, 0, 0, 10.0, 3.0],
+    )
+    assert abs(fit.params["major_radius"] - 10.0) <= 5 * np.sqrt(cov[5, 5])
+    assert abs(fit.params["minor_radius"] - 3.0) <= 5 * np.sqrt(cov[6, 6])
+    assert _angle(fit.params["axis_dir"], d_true) <= 5 * np.sqrt(cov[0, 0] + cov[1, 1])
+    assert np.sum((np.array(fit.params["center"]) - shift) ** 2) <= 25 * np.trace(cov[2:5, 2:5])
+
+
+def test_distance_functions_are_exact():
+    """Analytic distances of hand-picked points (the CRLB above relies on them)."""
+    o = np.zeros(3)
+    z = np.array([0.0, 0, 1])
+    p = np.array([[0.0, 0, 0], [3.0, 4.0, 7.0]])
+    assert np.allclose(Sphere(o, 2.0).distance(p), [-2.0, np.sqrt(74) - 2])
+    assert np.allclose(Cylinder(o, z, 2.0).distance(p), [-2.0, 3.0])
+    assert np.allclose(Torus(o, z, 5.0, 1.0).distance(np.array([[5.0, 0, 0], [8.0, 0, 4.0]])), [-1.0, 4.0])
+    cone = Cone(o, z, np.pi / 4)
+    # (1, 0, 1) is on the cone; (2, 0, 0) is √2 outside; (0, 0, -1) is behind the apex, outside, 1 from it;
+    # (0, 0, 2) is on the axis, inside, √2 from the generator
+    pts = np.array([[1.0, 0, 1], [2.0, 0, 0], [0, 0, -1.0], [0, 0, 2.0]])
+    assert np.allclose(cone.distance(pts), [0.0, np.sqrt(2), 1.0, -np.sqrt(2)])
+
+
+# ------------------------------------------------------------------------------------- type selection
+
+SAMPLERS = {
+    "plane": (sample_plane, {}),
+    "sphere": (sample_sphere, {"radius": 10.0}),
+    "cylinder": (sample_cylinder, {"radius": 10.0}),
+    "cone": (sample_cone, {}),
+    "torus": (sample_torus, {}),
+}
+
+
+@pytest.mark.parametrize("kind", list(SAMPLERS))
+@pytest.mark.parametrize("seed", [10, 11])
+def test_selection_picks_the_true_type(kind, seed):
+    rng = np.random.default_rng(seed)
+    sampler, kw = SAMPLERS[kind]
+    _, pts, _, _, _ = _posed(sampler, rng, n=1000, **kw)
+    fit = fit_surface(pts, tolerance=TOL)  # normals estimated
+    assert fit, fit.reason
+    assert fit.type == kind
+    assert fit.deviation["p99"] <= TOL
+
+
+def test_default_tolerance_from_noise_selects_types():
+    rng = np.random.default_rng(12)
+    _, pts, _, _, _ = _posed(sample_torus, rng, n=2000)
+    tol = default_tolerance(pts)
+    assert tol == pytest.approx(4 * SIGMA, rel=0.1)
+    assert fit_surface(pts).type == "torus"
+
+
+@pytest.mark.parametrize("sigma", [0.01, 0.05])
+def test_noise_sigma_on_curved_patch(sigma):
+    """σ is recovered within 10 % on a torus (curvature 1/3 mm⁻¹ would bias a plane-residual estimate)."""
+    rng = np.random.default_rng(13)
+    clean, nrm = sample_torus(4000, rng, minor=3.0, phi=(0, 2 * np.pi), theta=(0, np.pi))
+    pts = add_noise(clean, sigma, rng)
+    assert noise_sigma(pts) == pytest.approx(sigma, rel=0.1)
+    assert noise_sigma(pts, nrm) == pytest.approx(sigma, rel=0.1)
+
+
+def test_wraparound_full_cylinder_and_full_torus():
+    rng = np.random.default_rng(14)
+    _, pts, _, _, _ = _posed(sample_cylinder, rng, n=2000, theta=(0, 2 * np.pi), radius=5.0)
+    fit = fit_surface(pts, tolerance=TOL)
+    assert fit.type == "cylinder" and abs(fit.params["radius"] - 5.0) <= 5 * SIGMA / np.sqrt(2000)
+    _, pts, _, _, _ = _posed(sample_torus, rng, n=3000, theta=(0, 2 * np.pi), phi=(0, 2 * np.pi))
+    fit = fit_surface(pts, tolerance=TOL)
+    assert fit.type == "torus"
+    # a full torus pins both radii about as well as a full sphere pins its radius: σ/√n
+    assert abs(fit.params["major_radius"] - 10.0) <= 5 * SIGMA / np.sqrt(3000) * 2
+    assert abs(fit.params["minor_radius"] - 3.0) <= 5 * SIGMA / np.sqrt(3000) * 2
+
+
+def test_degenerate_limits_are_reported_not_returned():
+    rng = np.random.default_rng(15)
+    _, cyl, _, _, _ = _posed(sample_cylinder, rng, n=1000)
+    cone = fit_cone(cyl, tolerance=TOL)
+    assert not cone and "cylinder" in cone.reason
+    _, flat, _, _, _ = _posed(sample_plane, rng, n=1000)
+    for fitter in (fit_sphere, fit_cylinder):
+        fit = fitter(flat, tolerance=TOL)
+        assert not fit and "plane" in fit.reason
+    _, ball, _, _, _ = _posed(sample_sphere, rng, n=1000, radius=10.0)
+    torus = fit_torus(ball, tolerance=TOL)
+    assert not torus or torus.deviation["p99"] > TOL or "sphere" in torus.reason
+    assert fit_surface(ball, tolerance=TOL).type == "sphere"
+
+
+def test_failed_selection_is_falsy_with_reasons():
+    rng = np.random.default_rng(16)
+    xy = rng.uniform(-3, 3, size=(800, 2))
+    pts = np.column_stack([xy, np.sin(xy[:, 0]) * np.cos(xy[:, 1])])
+    fit = fit_surface(pts, tolerance=TOL, allow_bspline=False)
+    assert not fit
+    for kind in ("plane", "sphere", "cylinder", "cone", "torus"):
+        assert kind + ":" in fit.reason
+
+
+def test_misuse_raises():
+    with pytest.raises(FitError, match="points"):
+        fit_plane(np.zeros((5, 2)))
+    with pytest.raises(FitError, match="at least"):
+        fit_sphere(np.zeros((3, 3)))
+    with pytest.raises(FitError, match="normals"):
+        fit_cylinder(np.random.default_rng(0).normal(size=(20, 3)), np.ones((19, 3)))
+    with pytest.raises(FitError, match="types"):
+        fit_surface(np.random.default_rng(0).normal(size=(20, 3)), tolerance=0.1, types=("ellipsoid",))
+    with pytest.raises(FitError, match="NaN"):
+        fit_plane(np.full((5, 3), np.nan))
+
+
+# ---------------------------------------------------------------------------------------------- B-spline
+
+
+def test_basis_matches_scipy_and_finite_differences():
+    knots = np.r_[0, 0, 0, 0, 0.2, 0.5, 0.6, 1, 1, 1, 1.0]
+    x = np.linspace(0, 1, 57)
+    first, val, der = basis_functions(x, knots, 3, derivative=True)
+    dense = np.zeros((len(x), len(knots) - 4))
+    dense_d = np.zeros_like(dense)
+    for j in range(4):
+        dense[np.arange(len(x)), first + j] = val[:, j]
+        dense_d[np.arange(len(x)), first + j] = der[:, j]
+    ref = BSpline.design_matrix(x, knots, 3).toarray()
+    assert np.allclose(dense, ref, atol=1e-12)
+    eye = np.eye(len(knots) - 4)
+    ref_d = np.column_stack([BSpline(knots, eye[i], 3).derivative()(x) for i in range(len(eye))])
+    assert np.allclose(dense_d, ref_d, atol=1e-9)
+
+
+def _sincos_patch(rng, n=2500):
+    xy = rng.uniform(-3, 3, size=(n, 2))
+    clean = np.column_stack([xy, np.sin(xy[:, 0]) * np.cos(xy[:, 1])])
+    return clean, add_noise(clean, SIGMA, rng)
+
+
+def test_bspline_height_field_within_two_sigma():
+    rng = np.random.default_rng(20)
+    clean, pts = _sincos_patch(rng)
+    fit = fit_surface(pts, tolerance=TOL)
+    assert fit and fit.type == "bspline"
+    assert fit.deviation["rms"] <= 2 * SIGMA
+    # against the noise-free surface the fit averages the noise out: well under σ
+    d_true = fit.distance(clean)
+    assert np.sqrt(np.mean(d_true**2)) <= SIGMA
+    cp = np.array(fit.params["control_points"])
+    nu, nv = cp.shape[:2]
+    assert len(fit.params["knots_u"]) == nu + fit.params["degree_u"] + 1
+    assert len(fit.params["knots_v"]) == nv + fit.params["degree_v"] + 1
+
+
+def test_bspline_extends_past_the_patch():
+    """Every point's closest surface point is inside the domain, not on its border: the surface can be trimmed."""
+    rng = np.random.default_rng(21)
+    _, pts = _sincos_patch(rng, n=1500)
+    surf = fit_bspline_surface(pts, tolerance=TOL).surface
+    uv = surf.closest_parameters(pts)
+    (u0, u1), (v0, v1) = surf.domain
+    # the parameter box is the data's box + 5 % per side: keep at least 2 % clear of the border
+    assert np.all((uv[:, 0] - u0 > 0.02 * (u1 - u0)) & (u1 - uv[:, 0] > 0.02 * (u1 - u0)))
+    assert np.all((uv[:, 1] - v0 > 0.02 * (v1 - v0)) & (v1 - uv[:, 1] > 0.02 * (v1 - v0)))
+
+
+def _grid_mesh(theta_max, nt=60, nz=20, radius=5.0, height=10.0, closed=False):
+    th = np.linspace(0, theta_max, nt, endpoint=not closed)
+    z = np.linspace(0, height, nz)
+    t, zz = np.meshgrid(th, z, indexing="ij")
+    pts = np.column_stack([radius * np.cos(t.ravel()), radius * np.sin(t.ravel()), zz.ravel()])
+    idx = np.arange(nt * nz).reshape(nt, nz)
+    if closed:
+        idx = np.vstack([idx, idx[:1]])
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    return pts, np.r_[np.column_stack([a, b, c]), np.column_stack([a, c, d])]
+
+
+def test_bspline_harmonic_map_for_non_height_field():
+    rng = np.random.default_rng(22)
+    pts, faces = _grid_mesh(1.5 * np.pi)
+    noisy = add_noise(pts, SIGMA, rng)
+    assert not fit_bspline_surface(noisy, tolerance=TOL)  # 270°: no height field, no faces
+    fit = fit_bspline_surface(noisy, faces=faces, tolerance=TOL)
+    assert fit, fit.reason
+    assert fit.deviation["p99"] <= TOL
+
+
+def test_bspline_refuses_wraparound_patch():
+    pts, faces = _grid_mesh(2 * np.pi, closed=True)
+    fit = fit_bspline_surface(pts, faces=faces, tolerance=TOL)
+    assert not fit and "wrap-around" in fit.reason
+
+
+# ------------------------------------------------------------------------------------------------ blends
+
+
+def test_rolling_ball_between_planes_is_a_cylinder_of_the_ball_radius():
+    rng = np.random.default_rng(30)
+    th = rng.uniform(np.pi, 1.5 * np.pi, 800)
+    y = rng.uniform(0, 20, 800)
+    strip = add_noise(np.column_stack([3 + 3 * np.cos(th), y, 3 + 3 * np.sin(th)]), 0.01, rng)
+    floor = fit_plane(np.column_stack([rng.uniform(3, 20, 50), rng.uniform(0, 20, 50), np.zeros(50)]))
+    wall = fit_plane(np.column_stack([np.zeros(50), rng.uniform(0, 20, 50), rng.uniform(3, 20, 50)]))
+    fit = fit_rolling_ball(strip, None, floor, wall, tolerance=0.04)
+    assert fit.type == "cylinder"
+    # 800 points on a quarter circle: CRLB-sized error ≈ 0.01·√(… ) ≪ 0.01; 5σ/√n·C with C ≤ 10 gives 0.018
+    assert abs(fit.params["ball_radius"] - 3.0) <= 5 * 0.01 / np.sqrt(800) * 10
+
+
+def test_ruled_surface_is_exact_on_a_hyperbolic_paraboloid():
+    g = np.linspace(0, 20, 40)
+    left = np.column_stack([np.full_like(g, 3.0), g, 0.05 * g])
+    right = np.column_stack([np.zeros_like(g), g, 3 - 0.05 * g])[::-1]  # reversed on purpose
+    fit = ruled_surface(left, right)
+    assert fit and fit.params["degree_v"] == 1
+    s = np.random.default_rng(31).uniform(0, 1, (300, 1))
+    inside = (1 - s) * left[np.arange(300) % 40] + s * right[::-1][np.arange(300) % 40]
+    assert np.abs(fit.distance(inside)).max() < 1e-6
