@@ -47,6 +47,7 @@ def test_filleted_box_true_surfaces_gives_original_solid(fillet_box, fillet_resu
     # Exact surfaces and exact edges (lines, circles): the volume is the original's to rounding.
     assert val.volume == pytest.approx(shape.volume, rel=1e-6)
     assert all(r.status == "ok" for r in res.faces)
+    assert res.ok
     assert sorted(r.surface_type for r in res.faces) == sorted(["plane"] * 6 + ["cylinder"] * 12 + ["sphere"] * 8)
     assert not res.warnings
     # No sewing: the edges are the network's own (24 vertices, 48 edges as V - E + F = 2).
@@ -125,6 +126,7 @@ def test_open_mesh_gives_shell_with_warning(fillet_box):
     assert res.validity.n_faces == 25
     assert res.validity.free_edges == 4  # the missing top face's rounded rectangle: 4 lines
     assert any("open" in w for w in res.warnings)
+    assert not res.ok
 
 
 def test_two_bodies_give_a_compound():

@@ -115,6 +115,11 @@ class BrepResult:
     geometry: NetworkGeometry
     warnings: tuple
 
+    @property
+    def ok(self) -> bool:
+        """A valid closed solid in which every part got its own face (no failed face, none lost to fixing)."""
+        return self.validity.ok and all(r.status != "failed" and r.face is not None for r in self.faces)
+
     def face_names(self) -> list[str]:
         return [f.name for f in self.faces if f.face is not None]
 
@@ -206,7 +211,9 @@ def _make_edge(curve: EdgeCurve, v1, v2, builder: BRep_Builder):
                     builder.UpdateVertex(v, 1.01 * d)
             mk = BRepBuilderAPI_MakeEdge(circ, v1, v2, float(p["t0"]), float(p["t1"]))
         else:
-            mk = BRepBuilderAPI_MakeEdge(_bspline_curve(curve.params), v1, v2)
+            # Explicit parameters: on a closed curve both ends project to the first one otherwise.
+            bsc = _bspline_curve(curve.params)
+            mk = BRepBuilderAPI_MakeEdge(bsc, v1, v2, bsc.FirstParameter(), bsc.LastParameter())
         if not mk.IsDone():
             raise BrepError(f"BRepBuilderAPI_MakeEdge failed ({mk.Error()}) for a {curve.kind} edge")
         return mk.Edge()
@@ -241,6 +248,15 @@ def _orientation_vote(model: SurfaceModel, points, normals) -> int:
 
 def _face_on_surface(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context):
     """Face on the part's own surface; wires run counter-clockwise about the surface normal."""
+    try:
+        return _face_on_surface_occ(model, loops, edges, vote, context)
+    except BrepError:
+        raise
+    except Exception as err:  # OCC raises Standard_Failure subclasses
+        raise BrepError(f"OpenCascade failed on the face: {type(err).__name__}: {err}") from err
+
+
+def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context):
     if vote < 0:
         loops = [-r[::-1] for r in loops]
     wires = [_wire(r, edges) for r in loops]
@@ -272,7 +288,10 @@ def _filled_face(loops: list[np.ndarray], edges, points):
         fill.Add(edges[abs(r) - 1], GeomAbs_Shape.GeomAbs_C0, True)
     for p in points[:: max(1, len(points) // 16)]:
         fill.Add(_pnt(p))
-    fill.Build()
+    try:
+        fill.Build()
+    except Exception as err:  # OCC raises Standard_Failure subclasses
+        raise BrepError(f"BRepOffsetAPI_MakeFilling failed: {type(err).__name__}: {err}") from err
     if not fill.IsDone():
         raise BrepError("BRepOffsetAPI_MakeFilling failed")
     face = TopoDS.Face_s(fill.Shape())
@@ -387,6 +406,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         warnings.append("the mesh is open: the result is a shell, not a solid")
     elif not validity.ok:
         warnings.append(f"result is not a valid closed solid: {validity}")
+    n_bad = sum(r.status == "failed" or r.face is None for r in records)
+    if n_bad:
+        warnings.append(f"{n_bad} of {len(records)} parts have no face in the result: do not trust its volume")
     for w in warnings:
         log.warning("build_solid: %s", w)
 

@@ -234,7 +234,7 @@ def _from_fit(fit) -> SurfaceModel:
         return _from_geom(Geom_Plane(_ax3(origin, normal)))
     if kind == "cylinder":
         origin = np.asarray(_param(p, "origin", "point", "center", "axis_point"), float)
-        axis = np.asarray(_param(p, "axis", "direction"), float)
+        axis = np.asarray(_param(p, "axis_dir", "axis", "direction"), float)
         r = float(_param(p, "radius"))
         return _from_geom(Geom_CylindricalSurface(_ax3(origin, axis), r))
     if kind == "sphere":
@@ -242,17 +242,19 @@ def _from_fit(fit) -> SurfaceModel:
         return _from_geom(Geom_SphericalSurface(_ax3(c, [0, 0, 1.0]), float(_param(p, "radius"))))
     if kind == "torus":
         c = np.asarray(_param(p, "center", "origin"), float)
-        axis = np.asarray(_param(p, "axis", "normal"), float)
+        axis = np.asarray(_param(p, "axis_dir", "axis", "normal"), float)
         return _from_geom(Geom_ToroidalSurface(_ax3(c, axis), float(_param(p, "major_radius", "R", "radius")),
                                                float(_param(p, "minor_radius", "r", "minor"))))
     if kind == "cone":
         apex = np.asarray(_param(p, "apex", "origin"), float)
-        axis = _unit(np.asarray(_param(p, "axis", "direction"), float))
+        axis = _unit(np.asarray(_param(p, "axis_dir", "axis", "direction"), float))
         half = float(_param(p, "half_angle", "semi_angle", "angle"))
-        # OCC wants a reference circle with positive radius: put it one unit along the axis from the apex.
-        ref = 1.0
-        loc = apex + ref * np.cos(half) * axis
-        return _from_geom(Geom_ConicalSurface(_ax3(loc, axis), half, ref * np.sin(half)))
+        # OCC wants a reference circle with positive radius, away from the singular apex.
+        if p.get("ref_point") is not None and p.get("ref_radius") is not None:
+            loc, ref_r = np.asarray(p["ref_point"], float), float(p["ref_radius"])
+        else:
+            loc, ref_r = apex + np.cos(half) * axis, np.sin(half)
+        return _from_geom(Geom_ConicalSurface(_ax3(loc, axis), half, ref_r))
     if kind == "bspline":
         return _from_geom(_bspline_surface(p))
     raise InputError(f"surface fit: unsupported type {fit.type!r}; expected plane/cylinder/cone/sphere/torus/bspline")
