@@ -156,6 +156,10 @@ def fit_line(points, *, tolerance: float | None = None) -> CurveFit:
     return _finish("line", params, Line(mean, d), pts, tolerance)
 
 
+def _failed_circle(n: int, reason: str) -> CurveFit:
+    return CurveFit("circle", {}, deviation_stats(np.empty(0)), n, ok=False, reason=f"circle: {reason}")
+
+
 def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) -> CurveFit:
     """Circle or arc through ordered ``points`` (n, 3), n ≥ 3: plane by PCA, Kåsa circle, 3D refinement.
 
@@ -173,12 +177,16 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     CurveFit
         ``params``: ``center``, ``normal`` (oriented so the points run counter-clockwise), ``radius``,
         ``x_dir`` (towards the first point), ``start_angle`` = 0, ``end_angle`` (the swept angle, or 2π),
-        ``full``. An open curve counts as a full circle when its sweep reaches 2π less one mean sample step.
+        ``full``. An open curve counts as a full circle when its sweep reaches 2π less 1.5 mean sample steps.
+        Falsy when degenerate: collinear points, or a sagitta (diagonal²/8r) below the tolerance (4σ of the
+        residuals without one) — a line.
     """
     pts = as_points(points, min_count=3)
     mean = pts.mean(axis=0)
     q = pts - mean
-    _, vec = np.linalg.eigh(q.T @ q)
+    evals, vec = np.linalg.eigh(q.T @ q)
+    if evals[1] <= 1e-12 * evals[2]:
+        return _failed_circle(len(pts), "degenerate (collinear points: a line)")
     n0 = vec[:, 0]
     e1, e2 = perpendicular_frame(n0)
     xy = np.column_stack([q @ e1, q @ e2])
@@ -187,7 +195,7 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     r2 = sol[2] + sol[:2] @ sol[:2]
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > 1e3 * size:
-        return CurveFit("circle", {}, deviation_stats(np.empty(0)), len(pts), ok=False, reason="circle: degenerate (collinear points: a line)")
+        return _failed_circle(len(pts), "degenerate (collinear points: a line)")
     c0 = sol[0] * e1 + sol[1] * e2
 
     def fun(x):
@@ -203,6 +211,9 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     normal /= np.linalg.norm(normal)
     center = c0 + res.x[2:5] + mean
     radius = abs(float(res.x[5]))
+    limit = tolerance if tolerance is not None else 4 * 1.4826 * float(np.median(np.abs(res.fun)))
+    if radius > 1e3 * size or size**2 / (8 * radius) < limit:
+        return _failed_circle(len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a line)")
     w = pts - center
     w -= np.outer(w @ normal, normal)
     x_dir = w[0] / np.linalg.norm(w[0])
