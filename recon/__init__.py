@@ -3,6 +3,7 @@
 The public API is declared here once; implementation modules are private.
 """
 
+from .curves import CurveNetwork, curve_network
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
 from .mesh import CleanReport, Mesh, clean_mesh, input_labels, load_mesh
 from .skeleton2d import (
@@ -22,6 +23,7 @@ __version__ = "0.1.0"
 __all__ = [
     "BrepError",
     "CleanReport",
+    "CurveNetwork",
     "DecompositionError",
     "ExportError",
     "FitError",
@@ -34,6 +36,7 @@ __all__ = [
     "Shape2D",
     "Skeleton2D",
     "SkeletonResult",
+    "curve_network",
     "load_shape",
     "plot_decomposition",
     "shape_from_curves",
