@@ -12,10 +12,14 @@ from .skeleton2d import (
     Shape2D,
     Skeleton2D,
     SkeletonResult,
+    default_omega_min,
+    default_spacing,
     load_shape,
     plot_decomposition,
     shape_from_curves,
+    resample_curves,
     shape_from_mask,
+    skeletonize,
 )
 
 __version__ = "0.1.0"
@@ -36,9 +40,13 @@ __all__ = [
     "Shape2D",
     "Skeleton2D",
     "SkeletonResult",
+    "default_omega_min",
+    "default_spacing",
     "curve_network",
     "load_shape",
     "plot_decomposition",
     "shape_from_curves",
+    "resample_curves",
     "shape_from_mask",
+    "skeletonize",
 ]
