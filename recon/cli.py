@@ -16,7 +16,7 @@ from .errors import ReconError
 __all__ = ["main", "SUBCOMMANDS"]
 
 #: Subcommand modules under ``recon._cli``, in the order ``recon --help`` lists them.
-SUBCOMMANDS = ["skeleton"]
+SUBCOMMANDS = ["skeleton", "decompose", "compare"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -43,9 +43,9 @@ log = logging.getLogger(__name__)
 DEFAULT_THRESHOLD = 0.02
 #: Smallest patch, in squared scales: a patch must hold a few windows to carry a face of its own.
 MIN_PATCH_WINDOWS = 12.0
-#: Half-width of the critical band around a sharp edge, in scales, below which a linear part is sharp:
-#: on sharp boxes the band's geodesic half-width measured 2.0–2.4 scales; a 3-scale fillet gives ≥ 3.5.
-SHARP_HALF_WIDTH = 3.0
+#: A part is sharp when less than this share of its area has normals in the middle half of its normal
+#: range: across a blend the normal turns evenly (share ≈ 0.5), across a sharp edge it jumps (share ≈ 0).
+SHARP_MIDDLE_SHARE = 0.2
 
 _INF = np.inf
 
@@ -160,11 +160,14 @@ def decompose(
         for k, v in remap.items():
             lut[k] = v
         labels[sel] = lut[part_of_face[sel]]
-        # sharp: the band is no wider than the smoothing makes a sharp edge
-        half_width = _part_half_width(labels, F, dist, len(kinds), sk_pairs)
-        sharp = [False] * n_patch + [
-            bool(kinds[i] in ("linear", "junction") and half_width[i] <= SHARP_HALF_WIDTH * s) for i in range(n_patch, len(kinds))
-        ]
+        mid = _middle_share(V, F, labels, area, len(kinds))
+        sharp = [False] * n_patch + [bool(kinds[i] == "linear" and mid[i] < SHARP_MIDDLE_SHARE) for i in range(n_patch, len(kinds))]
+        # a junction is sharp (a corner vertex) when every linear part meeting it is sharp
+        _, nb = boundary_curves(V, topo, labels, len(kinds))
+        for i in range(n_patch, len(kinds)):
+            if kinds[i] == "junction":
+                lin = [j for j in nb[i] if kinds[j] == "linear"]
+                sharp[i] = bool(lin) and all(sharp[j] for j in lin)
         sk = _skeleton_output(V, F, sk_pairs)
 
     if (labels < 0).any():  # cannot happen by construction; fail loudly rather than emit -1 labels
@@ -482,17 +485,31 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     return comp
 
 
-def _part_half_width(labels, F, dist, n_parts, sk_pairs):
-    """Median distance to the nearest patch boundary over each part's skeleton triangles (a half-width)."""
-    nodes = np.unique(sk_pairs.ravel())
-    out = np.full(n_parts, _INF)
-    if len(nodes) == 0:
-        return out
-    d = dist[F[nodes]].max(axis=1)
-    lab = labels[nodes]
-    ok = np.isfinite(d)
-    for p in np.unique(lab[ok]):
-        out[p] = float(np.median(d[ok & (lab == p)]))
+def _middle_share(V, F, labels, area, n_parts):
+    """Per part: share of area whose raw normal lies in the middle half of the part's normal range.
+
+    The normals are projected on their main direction of spread (largest eigenvector of their
+    covariance); the range is the 5–95 % area quantiles of that projection.
+    """
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    nrm = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)
+    out = np.full(n_parts, 0.5)
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(n_parts + 1))
+    for p in range(n_parts):
+        idx = order[bounds[p] : bounds[p + 1]]
+        if len(idx) < 8:
+            continue
+        w = area[idx] / max(area[idx].sum(), 1e-300)
+        nn = nrm[idx] - (w[:, None] * nrm[idx]).sum(axis=0)
+        cov = (nn * w[:, None]).T @ nn
+        axis = np.linalg.eigh(cov)[1][:, -1]
+        t = nrm[idx] @ axis
+        o = np.argsort(t)
+        cw = np.cumsum(w[o])
+        lo, hi = t[o][np.searchsorted(cw, 0.05)], t[o][min(np.searchsorted(cw, 0.95), len(o) - 1)]
+        a, b = lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)
+        out[p] = float(w[(t >= a) & (t <= b)].sum())
     return out
 
 

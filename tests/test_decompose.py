@@ -1,0 +1,106 @@
+"""Surface decomposition: the rounded box's 6/12/8, ground-truth IoU, invariances, CLI."""
+
+import json
+
+import numpy as np
+import pytest
+
+from recon.cli import main
+from recon.decompose import decompose, face_recovery
+from recon.decompose._synthetic import rounded_box
+
+
+def _areas(V, F):
+    return 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+
+
+EXPECTED = {"patch": 6, "junction": 8, "linear": 12, "terminal": 0}
+
+
+@pytest.fixture(scope="module")
+def box():
+    V, F, L = rounded_box(spacing=0.5)
+    return V, F, L, decompose((V, F))
+
+
+def test_face_recovery_hand_made():
+    # two true faces of area 1+1 and 2; parts split the first face's triangles 1 : 1 with the second
+    true = np.array([0, 0, 1])
+    parts = np.array([5, 7, 7])
+    r = face_recovery(parts, true, np.array([1.0, 1.0, 2.0]))
+    assert r.best_part.tolist() == [5, 7]  # tie broken by lowest part id
+    assert r.iou == pytest.approx([0.5, 2.0 / 3.0])
+    assert r.recovered == 1.0
+
+
+def test_rounded_box_counts_and_recovery(box):
+    V, F, L, d = box
+    assert d.counts() == EXPECTED
+    r = face_recovery(d.labels, L, _areas(V, F))
+    assert r.recovered >= 0.95
+    # every patch touches 4 linear parts, every junction 3, every linear 2 patches + 2 junctions
+    kinds = [p.kind for p in d.parts]
+    for p in d.parts:
+        nk = sorted(kinds[j] for j in p.neighbours)
+        if p.kind == "patch":
+            assert nk.count("linear") == 4
+        elif p.kind == "junction":
+            assert nk == ["linear"] * 3  # a sphere octant meets the planes only at their corners
+        else:
+            assert nk.count("patch") == 2 and nk.count("junction") == 2
+    assert not any(p.sharp for p in d.parts)  # 3 mm fillets at a 0.8 mm scale are blends
+    assert np.bincount(d.labels).sum() == len(F)
+
+
+def test_noisy_box_counts():
+    V, F, L = rounded_box(spacing=0.5, sigma=0.1)  # sigma = 0.19 % of the diagonal
+    d = decompose((V, F))
+    assert d.counts() == EXPECTED
+
+
+def test_sharp_box():
+    V, F, L = rounded_box(size=(20, 16, 12), radius=0.0, spacing=0.5)
+    d = decompose((V, F))
+    assert d.counts() == EXPECTED
+    assert all(p.sharp for p in d.parts if p.kind in ("linear", "junction"))
+
+
+def _same_partition(a, b):
+    """Labels equal up to renumbering: the pairing of labels is a bijection."""
+    pairs = np.unique(np.stack([a, b], axis=1), axis=0)
+    return len(pairs) == len(np.unique(a)) == len(np.unique(b))
+
+
+def test_rigid_motion_scaling_and_permutation(box):
+    V, F, L, d = box
+    q, _ = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
+    d2 = decompose((3.0 * V @ q.T + [10, 20, -5], F))
+    assert d2.counts() == d.counts()
+    agree = face_recovery(d2.labels, d.labels, _areas(V, F))
+    assert agree.mean_iou > 0.98
+    perm = np.random.default_rng(4).permutation(len(F))
+    d3 = decompose((V, F[perm]))
+    assert d3.counts() == d.counts()
+    assert _same_partition(d3.labels, d.labels[perm])
+
+
+def test_retessellation_same_counts():
+    V, F, L = rounded_box(spacing=1.0)
+    assert decompose((V, F)).counts() == EXPECTED
+
+
+def test_cli(tmp_path):
+    trimesh = pytest.importorskip("trimesh")
+    V, F, L = rounded_box(radius=3.0, spacing=1.0)
+    src = tmp_path / "box.stl"
+    trimesh.Trimesh(V, F, process=False).export(src)
+    out, png = tmp_path / "d.json", tmp_path / "d.png"
+    assert main(["decompose", str(src), "--json", str(out), "--preview", str(png)]) == 0
+    doc = json.loads(out.read_text())
+    assert len(doc["triangle_labels"]) == len(F)
+    kinds = [p["kind"] for p in doc["parts"]]
+    assert {k: kinds.count(k) for k in EXPECTED} == EXPECTED
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    bad = tmp_path / "bad.stl"
+    bad.write_text("not a mesh")
+    assert main(["decompose", str(bad), "--json", str(out)]) == 2
