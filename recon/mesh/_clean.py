@@ -91,7 +91,7 @@ def clean_mesh(vertices, faces, *, weld_tolerance: float | None = None) -> Mesh:
     ok = np.flatnonzero(~degenerate)
 
     # Topology as read (after welding), to report what cleaning changed.
-    _, _, count_in = unique_edges(F[ok], len(positions))
+    edges_in, face_edges_in, count_in = unique_edges(F[ok], len(positions))
     keep, n_dup, n_wall = _deduplicated(F, ok, len(positions))
     if len(keep) == 0:
         raise MeshError(
@@ -99,12 +99,21 @@ def clean_mesh(vertices, faces, *, weld_tolerance: float | None = None) -> Mesh:
             f"of {m_in}; weld tolerance {tol:.3g})"
         )
 
+    # Compact vertices and edges to those the kept triangles use. Both renumberings are monotone, so the
+    # edges stay sorted and nothing needs sorting again.
     F = F[keep]
-    used_ids, F = np.unique(F, return_inverse=True)
-    F = F.reshape(-1, 3).astype(np.int64)
-    V = positions[used_ids]
+    used = np.zeros(len(positions), dtype=bool)
+    used[F.ravel()] = True
+    vertex_id = np.cumsum(used) - 1
+    F = vertex_id[F]
+    V = positions[used]
+    face_edges = face_edges_in[np.searchsorted(ok, keep)]
+    count = np.bincount(face_edges.ravel(), minlength=len(edges_in))
+    edge_used = count > 0
+    face_edges = (np.cumsum(edge_used) - 1)[face_edges]
+    count = count[edge_used]
+    edges = vertex_id[edges_in[edge_used]]
 
-    edges, face_edges, count = unique_edges(F, len(V))
     flip, component, n_comp, inconsistent = _orientation_and_components(V, F, edges, face_edges, count)
     F[flip] = F[flip][:, [0, 2, 1]]
 
@@ -323,18 +332,17 @@ def _orientation_and_components(V, F, edges, face_edges, count):
     root = m
     src = np.concatenate([fa, fb, np.full(len(seeds), root)])
     dst = np.concatenate([fb, fa, seeds])
-    graph = coo_matrix((np.ones(len(src), dtype=np.int8), (src, dst)), shape=(m + 1, m + 1)).tocsr()
+    rel = np.concatenate([disagree, disagree, np.zeros(len(seeds), dtype=bool)]).astype(np.int8) + 1
+    graph = coo_matrix((rel, (src, dst)), shape=(m + 1, m + 1)).tocsr()
+    graph.sort_indices()
     _, pred = breadth_first_order(graph, root, directed=True, return_predecessors=True)
     parent = pred.astype(np.int64)
     parent[root] = root
+    # The disagreement of each tree edge, read from the CSR entries (row-major sorted keys: no argsort).
+    entry_key = np.repeat(np.arange(m + 1, dtype=np.int64), np.diff(graph.indptr)) * (m + 1) + graph.indices
     parity = np.zeros(m + 1, dtype=bool)
-    tree = np.flatnonzero(parent[:m] != root)
-    if len(tree):
-        lo_ab, hi_ab = np.minimum(fa, fb), np.maximum(fa, fb)
-        key = lo_ab * (m + 1) + hi_ab
-        key_order = np.argsort(key)
-        q = np.minimum(tree, parent[tree]) * (m + 1) + np.maximum(tree, parent[tree])
-        parity[tree] = disagree[key_order[np.searchsorted(key, q, sorter=key_order)]]
+    tree = np.flatnonzero(parent[:m] != root)  # patch seeds hang from the root with parity 0
+    parity[tree] = graph.data[np.searchsorted(entry_key, tree * (m + 1) + parent[tree])] == 2
     while (parent[:m] != root).any():
         parity = parity ^ parity[parent]
         parent = parent[parent]
@@ -349,12 +357,15 @@ def _orientation_and_components(V, F, edges, face_edges, count):
     patch_vol = np.bincount(patch, weights=six_vol * sign, minlength=n_patch)
     flipped_area = np.bincount(patch, weights=area * flip, minlength=n_patch)
     kept_area = np.bincount(patch, weights=area * ~flip, minlength=n_patch)
-    # A patch is closed if each of its edges carries exactly two of its own half-edges.
-    he_patch = np.repeat(patch, 3)
-    pair_key, per_pair = np.unique(he_patch * len(edges) + he_edge, return_counts=True)
-    pair_patch = pair_key // len(edges)
+    # A patch is closed if each of its edges carries exactly two of its own half-edges: it touches no
+    # boundary edge, and no non-manifold edge with other than two of its own triangles.
     open_patch = np.zeros(n_patch, dtype=bool)
-    open_patch[pair_patch[per_pair != 2]] = True
+    he_count = count[he_edge]
+    open_patch[patch[np.flatnonzero(he_count == 1) // 3]] = True
+    he_nm = np.flatnonzero(he_count > 2)
+    if len(he_nm):
+        pair_key, per_pair = np.unique(patch[he_nm // 3] * len(edges) + he_edge[he_nm], return_counts=True)
+        open_patch[(pair_key // len(edges))[per_pair != 2]] = True
     invert = np.where(open_patch, flipped_area > kept_area, patch_vol < 0)
     flip = flip ^ invert[patch]
 
