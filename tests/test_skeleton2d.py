@@ -193,6 +193,22 @@ def test_square_from_its_corners():
     assert res.skeleton.radius[j[0]] == pytest.approx(0.5, abs=res.spacing)
 
 
+def test_everything_pruned_leaves_one_vertex_per_body():
+    # ω_min beyond half of every curve's length prunes every Voronoi edge (§2 cond. 3: ω ≤ L/2 on one curve)
+    shape = Shape2D((rect(0, 0, 2, 1), rect(3, 0, 4, 1)))
+    res = skeletonize(shape, omega_min=10.0)
+    sk = res.skeleton
+    assert len(sk.vertices) == 2 and len(sk.edges) == 0
+    assert [p.kind for p in res.parts] == ["junction", "junction"]
+    assert sorted(p.area for p in res.parts) == pytest.approx([1.0, 2.0], rel=1e-12)
+    for p in res.parts:
+        # the vertex is inside its part; an empty circle centred inside reaches the nearest sample within
+        # (inradius 1/2) + (half a sample gap)
+        v = sk.vertices[p.skeleton_vertices[0]]
+        assert shapely.contains_xy(shapely.Polygon(p.polygon), *v)
+        assert 0 < sk.radius[p.skeleton_vertices[0]] <= 0.5 + res.spacing / 2
+
+
 # ------------------------------------------------------------------------------------------- invariants
 
 

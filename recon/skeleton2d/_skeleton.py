@@ -302,9 +302,10 @@ def _inside(simp: np.ndarray, nb: np.ndarray, is_bnd: np.ndarray) -> np.ndarray:
     ext = u < 0
     cu = np.where(ext, n_comp, comp[np.where(ext, 0, u)])
     cross = (ext | (u > t)) & (eb | ext)
-    edges = np.unique(np.stack([comp[t[cross]], cu[cross], eb[cross].astype(np.int64)], axis=1), axis=0)
+    key = np.unique((comp[t[cross]] * (n_comp + 1) + cu[cross]) * 2 + eb[cross])
     adj: dict[int, list[tuple[int, int]]] = {}
-    for c0, c1, f in edges.tolist():
+    for c01, f in zip((key // 2).tolist(), (key % 2).tolist()):
+        c0, c1 = divmod(c01, n_comp + 1)
         adj.setdefault(c0, []).append((c1, f))
         adj.setdefault(c1, []).append((c0, f))
     parity = np.full(n_comp + 1, -1, dtype=np.int64)
@@ -386,8 +387,9 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     Notes
     -----
     - A body whose pruned skeleton is empty, or collapses to a single point (a disk: every circumcentre is
-      its centre), gets one skeleton vertex of degree 0 at the circumcentre of its largest empty circle;
-      its radius is that circle's radius. That vertex makes one ``"junction"`` part covering the whole body.
+      its centre), gets one skeleton vertex of degree 0: the centre of its largest empty circle centred in
+      its own (acute) triangle, with that circle's radius. That vertex makes one ``"junction"`` part covering
+      the whole body.
     - A skeleton vertex is the mean of the coincident circumcentres it merges; its radius their mean
       circumradius, i.e. the distance to its sites.
     - Pruned triangles belong to the part they hang from, so the parts tile the shape. A part holding no
@@ -432,10 +434,12 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     has[body[np.isin(cluster, used) & inside]] = True
     lonely = ins[~has[body[ins]]]
     if len(lonely):
-        best = np.full(body.max() + 1, -1, dtype=np.int64)
-        o = lonely[np.lexsort((-rr[lonely], body[lonely]))]
-        first = np.r_[True, body[o][1:] != body[o][:-1]]
-        best = o[first]
+        # the largest empty circle whose centre lies in its own triangle (an acute triangle), so it is inside
+        q = points[simp[lonely]]
+        acute = np.all(np.einsum("tij,tij->ti", np.roll(q, -1, axis=1) - q, np.roll(q, 1, axis=1) - q) >= 0, axis=1)
+        score = np.where(acute, rr[lonely], -1.0 / (1.0 + rr[lonely]))
+        o = lonely[np.lexsort((-score, body[lonely]))]
+        best = o[np.r_[True, body[o][1:] != body[o][:-1]]]
         used = np.unique(np.r_[used, cluster[best]])
         log.info("skeletonize: %d bodies have a one-point skeleton", len(best))
 
