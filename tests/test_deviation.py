@@ -1,0 +1,203 @@
+"""Deviation analysis: exact distances to B-rep faces against analytic answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+bd = pytest.importorskip("build123d")
+
+from OCP.BRepAdaptor import BRepAdaptor_Surface  # noqa: E402
+from OCP.gp import gp_Pnt, gp_Vec  # noqa: E402
+from OCP.Interface import Interface_Static  # noqa: E402
+from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Writer  # noqa: E402
+from OCP.STEPControl import STEPControl_AsIs  # noqa: E402
+from OCP.TCollection import TCollection_ExtendedString  # noqa: E402
+from OCP.TDataStd import TDataStd_Name  # noqa: E402
+from OCP.TDocStd import TDocStd_Document  # noqa: E402
+from OCP.TopAbs import TopAbs_REVERSED  # noqa: E402
+from OCP.XCAFDoc import XCAFDoc_DocumentTool  # noqa: E402
+
+from recon.brep._distance import BrepDistance  # noqa: E402
+from recon.brep._step_read import faces_of, read_step  # noqa: E402
+from recon.deviation import deviation, plot_deviation  # noqa: E402
+from recon.errors import InputError  # noqa: E402
+
+
+def write_named_step(shape, names, path):
+    """STEP with XCAF face names (None: unnamed), as recon's B-rep writer is meant to store them."""
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    top = tool.AddShape(shape, False)
+    for face, name in zip(faces_of(shape), names):
+        if name is not None:
+            TDataStd_Name.Set_s(tool.AddSubShape(top, face), TCollection_ExtendedString(name))
+    STEPCAFControl_Controller.Init_s()
+    Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    writer = STEPCAFControl_Writer()
+    writer.SetNameMode(True)
+    writer.Transfer(doc, STEPControl_AsIs)
+    assert writer.Write(str(path)) == 1
+
+
+def tessellation(shape, tol=0.01):
+    verts, tris = shape.tessellate(tol)
+    return np.array([(p.X, p.Y, p.Z) for p in verts]), np.array(tris, dtype=np.int64)
+
+
+def box_sdf(p, half):
+    q = np.abs(p) - half
+    return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
+
+
+def capped_cylinder_sdf(p, radius, half_height):
+    d = np.stack([np.hypot(p[:, 0], p[:, 1]) - radius, np.abs(p[:, 2]) - half_height], axis=1)
+    return np.minimum(d.max(axis=1), 0) + np.linalg.norm(np.maximum(d, 0), axis=1)
+
+
+# ---------------------------------------------------------------- mesh → shape, analytic answers
+@pytest.mark.parametrize("delta", [0.25, -0.25])
+def test_sphere_offset_mesh_is_exactly_delta(tmp_path, delta):
+    # Every icosphere vertex lies on the sphere of radius R + δ: its distance to the STEP sphere of
+    # radius R is exactly δ. A tessellated sphere would be off by its deflection (≈1e-2 here).
+    R = 10.0
+    step = tmp_path / "sphere.step"
+    bd.export_step(bd.Sphere(R), str(step))
+    ico = trimesh.creation.icosphere(subdivisions=3)
+    rep = deviation(ico.vertices * (R + delta), ico.faces, step)
+    np.testing.assert_allclose(rep.signed, delta, rtol=1e-9)
+    assert rep.mesh_to_shape.max == pytest.approx(abs(delta), rel=1e-9)
+    assert rep.mesh_to_shape.signed_min == pytest.approx(delta, rel=1e-9)
+
+
+def test_box_against_its_own_triangulation_is_zero():
+    box = bd.Box(10, 20, 30)
+    v, f = tessellation(box)
+    rep = deviation(v, f, box)
+    assert rep.mesh_to_shape.max <= 1e-9
+    # The triangulation of a box is the box: the way back is 0 as well.
+    assert rep.shape_to_mesh.max <= 1e-9
+    # Per-face counts partition the mesh points.
+    assert sum(fd.count for fd in rep.faces) == len(v)
+
+
+@pytest.mark.parametrize(
+    "shape, types",
+    [(bd.Cylinder(5, 20), {"cylinder", "plane"}), (bd.Torus(10, 3), {"torus"}), (bd.Cone(5, 2, 10), {"cone", "plane"})],
+    ids=["cylinder", "torus", "cone"],
+)
+def test_curved_solid_against_its_own_triangulation_is_zero(shape, types):
+    # Triangulation nodes lie on the exact surfaces; only exact distances make this 0.
+    v, f = tessellation(shape)
+    rep = deviation(v, f, shape, samples=2000)
+    assert {fd.type for fd in rep.faces} == types
+    assert rep.mesh_to_shape.max <= 1e-9
+
+
+def test_box_signed_distance_matches_analytic_sdf():
+    # Random points around the box, many projecting outside every face (onto edges and corners):
+    # the analytic signed distance function of a box is the reference.
+    rng = np.random.default_rng(3)
+    p = rng.uniform(-25, 25, (3000, 3))
+    s, _, foot = BrepDistance(bd.Box(10, 20, 30).wrapped).signed_distance(p)
+    np.testing.assert_allclose(s, box_sdf(p, np.array([5.0, 10.0, 15.0])), atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(p - foot, axis=1), np.abs(s), atol=1e-12)
+
+
+def test_cylinder_signed_distance_matches_analytic_sdf():
+    # Outside the caps the nearest point is on a circular edge (closed form), and near the seam
+    # the UV wrap and the exact classifier decide: both exercised by uniform points.
+    rng = np.random.default_rng(4)
+    p = rng.uniform(-15, 15, (3000, 3))
+    s, _, _ = BrepDistance(bd.Cylinder(5, 20).wrapped).signed_distance(p)
+    np.testing.assert_allclose(s, capped_cylinder_sdf(p, 5.0, 10.0), atol=1e-12)
+
+
+def test_torus_signed_distance_matches_analytic():
+    rng = np.random.default_rng(5)
+    p = rng.uniform(-16, 16, (3000, 3))
+    s, _, _ = BrepDistance(bd.Torus(10, 3).wrapped).signed_distance(p)
+    tube = np.stack([np.hypot(p[:, 0], p[:, 1]) - 10.0, p[:, 2]], axis=1)
+    np.testing.assert_allclose(s, np.linalg.norm(tube, axis=1) - 3.0, atol=1e-12)
+
+
+def test_bspline_face_points_offset_along_normals():
+    grid = [[(x, y, 2 * np.sin(x / 5) * np.cos(y / 7)) for x in np.linspace(0, 20, 6)] for y in np.linspace(0, 20, 6)]
+    face = bd.Face.make_surface_from_array_of_points(grid)
+    adaptor = BRepAdaptor_Surface(face.wrapped)
+    u0, u1 = adaptor.FirstUParameter(), adaptor.LastUParameter()
+    v0, v1 = adaptor.FirstVParameter(), adaptor.LastVParameter()
+    rng = np.random.default_rng(6)
+    points, normals = [], []
+    for u, v in zip(rng.uniform(u0 + 0.1 * (u1 - u0), u1 - 0.1 * (u1 - u0), 300),
+                    rng.uniform(v0 + 0.1 * (v1 - v0), v1 - 0.1 * (v1 - v0), 300)):
+        p, du, dv = gp_Pnt(), gp_Vec(), gp_Vec()
+        adaptor.D1(u, v, p, du, dv)
+        n = np.array(du.Crossed(dv).Coord())
+        n *= (-1 if face.wrapped.Orientation() == TopAbs_REVERSED else 1) / np.linalg.norm(n)
+        points.append(p.Coord())
+        normals.append(n)
+    points, normals = np.array(points), np.array(normals)
+    brep = BrepDistance(face.wrapped)
+    assert brep.types == ("bspline",)
+    delta = 0.2  # well below the surface's radii of curvature (> 4), so the offset point projects back
+    for sign in (1.0, -1.0):
+        s, _, _ = brep.signed_distance(points + sign * delta * normals)
+        np.testing.assert_allclose(s, sign * delta, atol=1e-6)
+
+
+# ---------------------------------------------------------------- report
+def test_percentages_and_face_names_from_step(tmp_path):
+    box = bd.Box(10, 20, 30)
+    names = [f"side_{i}" if i != 2 else None for i in range(6)]
+    step = tmp_path / "named.step"
+    write_named_step(box.wrapped, names, step)
+    shape, read_names = read_step(step)
+    assert read_names == ("side_0", "side_1", "face_2", "side_3", "side_4", "side_5")
+
+    rng = np.random.default_rng(7)
+    v, f = tessellation(box)
+    v = v + rng.normal(scale=0.05, size=v.shape)
+    rep = deviation(v, f, step, samples=3000)
+    assert [fd.name for fd in rep.faces] == list(read_names)
+    assert rep.diagonal == pytest.approx(np.linalg.norm(v.max(0) - v.min(0)))
+    for stats in (rep.mesh_to_shape, rep.shape_to_mesh):
+        js = stats.to_json()
+        for key in ("max", "p95", "rms", "mean"):
+            assert js[f"{key}_pct"] == pytest.approx(js[key] / rep.diagonal * 100)
+    assert sum(fd.count for fd in rep.faces) == len(v)
+    # The per-face maxima are the overall maximum's parts.
+    assert max(fd.max for fd in rep.faces if fd.max is not None) == pytest.approx(rep.mesh_to_shape.max)
+    js = rep.to_json()
+    assert set(js) == {"diagonal", "mesh_to_shape", "shape_to_mesh", "faces"}
+    assert {"name", "type", "max", "rms", "count"} <= set(js["faces"][0])
+
+
+def test_preview_png(tmp_path):
+    ico = trimesh.creation.icosphere(subdivisions=2)
+    out = tmp_path / "p.png"
+    plot_deviation(ico.vertices, ico.faces, ico.vertices[:, 0], out)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["p.png"]  # no temp file left
+
+
+@pytest.mark.parametrize(
+    "vertices, faces",
+    [(np.empty((0, 3)), np.empty((0, 3), dtype=int)), (np.zeros((3, 2)), np.array([[0, 1, 2]])),
+     (np.zeros((3, 3)), np.array([[0, 1, 3]])), (np.full((3, 3), np.nan), np.array([[0, 1, 2]]))],
+    ids=["empty", "2d", "index", "nan"],
+)
+def test_bad_mesh_arrays(vertices, faces):
+    with pytest.raises(InputError):
+        deviation(vertices, faces, bd.Box(1, 1, 1))
+
+
+def test_bad_step(tmp_path):
+    ico = trimesh.creation.icosphere(subdivisions=1)
+    with pytest.raises(InputError, match="does not exist"):
+        deviation(ico.vertices, ico.faces, tmp_path / "missing.step")
+    junk = tmp_path / "junk.step"
+    junk.write_text("not a step file\n")
+    with pytest.raises(InputError):
+        deviation(ico.vertices, ico.faces, junk)
