@@ -39,6 +39,8 @@ log = logging.getLogger(__name__)
 MAX_FIT_POINTS = 2000
 #: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
 _HUGE = 1e3
+#: The first refinement pass runs on about this many points (see ``_refine``).
+COARSE_POINTS = 400
 #: Evaluation budget of the refinement: a good start converges in < 15; wrong types wander and are cut short.
 _MAX_NFEV = 60
 #: Half-angles within this of 0 (or π/2) make a cone a cylinder (or a plane).
@@ -71,9 +73,25 @@ def _extent(points: np.ndarray) -> float:
     return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
 
 
-def _robust(fun, x0, scale: float, jac="2-point"):
-    """soft-l1 least squares; ``scale`` is where the loss turns from quadratic to linear (≈ the noise)."""
-    return least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=scale, x_scale="jac", max_nfev=_MAX_NFEV)
+def _refine(fun, x0, q, *, scale, size, tolerance, jac="2-point"):
+    """Robust least squares of the geometric residuals ``fun(x, q)``, coarse to fine.
+
+    soft-l1 loss; its ``f_scale`` (where it turns from quadratic to linear) is ``scale`` or the noise
+    estimated from the start's residuals. The first pass runs on about :data:`COARSE_POINTS` of ``q``. A
+    wrong surface type is rejected there when, with a ``tolerance``, the p99 of |d| over all of ``q`` still
+    exceeds 3 × tolerance (a right type's coarse fit is off by ~σ·sqrt(n/COARSE_POINTS)/sqrt(n), far below
+    that); otherwise a second pass polishes on all of ``q`` from the coarse solution.
+    """
+    step = -(-len(q) // COARSE_POINTS)
+    coarse = q[::step]
+    f_scale = _scale(fun(x0, coarse), scale, size)
+    kw = dict(jac=jac, loss="soft_l1", f_scale=f_scale, x_scale="jac", max_nfev=_MAX_NFEV)
+    res = least_squares(fun, x0, args=(coarse,), **kw)
+    if step == 1:
+        return res
+    if tolerance is not None and np.percentile(np.abs(fun(res.x, q)), 99) > 3 * tolerance:
+        return res
+    return least_squares(fun, res.x, args=(q,), **kw)
 
 
 def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
@@ -112,6 +130,23 @@ def _failed(kind: str, n: int, reason: str) -> SurfaceFit:
 def _direction(d0, e1, e2, a, b):
     d = d0 + a * e1 + b * e2
     return d / np.linalg.norm(d)
+
+
+def _direction_jac(d0, e1, e2, a, b):
+    """d and its derivatives ∂d/∂a, ∂d/∂b for d = normalize(d0 + a e1 + b e2)."""
+    v = d0 + a * e1 + b * e2
+    nv = np.linalg.norm(v)
+    d = v / nv
+    return d, (e1 - d * (d @ e1)) / nv, (e2 - d * (d @ e2)) / nv
+
+
+def _radial(w: np.ndarray, d: np.ndarray):
+    """Height h, distance ρ to the axis and the unit radial direction u of vectors w from an axis point."""
+    h = w @ d
+    radial = w - h[:, None] * d
+    rho = np.linalg.norm(radial, axis=1)
+    u = radial / np.maximum(rho, 1e-300)[:, None]
+    return h, rho, u
 
 
 def _circle_2d(xy: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -199,16 +234,16 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > _HUGE * size:
         return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
 
-    def fun(x):
+    def fun(x, q):
         return np.linalg.norm(q - x[:3], axis=1) - x[3]
 
-    def jac(x):
+    def jac(x, q):
         diff = q - x[:3]
         dist = np.linalg.norm(diff, axis=1, keepdims=True)
         return np.column_stack([-diff / np.maximum(dist, 1e-300), -np.ones(len(q))])
 
     x0 = np.r_[c0, np.sqrt(r2)]
-    res = _robust(fun, x0, _scale(fun(x0), scale, size), jac=jac)
+    res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
     if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
@@ -246,14 +281,21 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
         return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
     c0 = circle[0][0] * e1 + circle[0][1] * e2
 
-    def fun(x):
+    def fun(x, q):
         d = _direction(d0, e1, e2, x[0], x[1])
         w = q - (c0 + x[2] * e1 + x[3] * e2)
         h = w @ d
         return np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0)) - x[4]
 
+    def jac(x, q):
+        d, da, db = _direction_jac(d0, e1, e2, x[0], x[1])
+        w = q - (c0 + x[2] * e1 + x[3] * e2)
+        h, rho, u = _radial(w, d)
+        k = -h / np.maximum(rho, 1e-300)  # ∂ρ/∂d = -(h/ρ) w
+        return np.column_stack([k * (w @ da), k * (w @ db), -(u @ e1), -(u @ e2), -np.ones(len(q))])
+
     x0 = np.array([0.0, 0.0, 0.0, 0.0, circle[1]])
-    res = _robust(fun, x0, _scale(fun(x0), scale, size))
+    res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     d = _direction(d0, e1, e2, res.x[0], res.x[1])
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
@@ -302,11 +344,20 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     alpha0 = float(np.arccos(np.clip(np.mean(u @ d0), -1.0, 1.0)))
     e1, e2 = perpendicular_frame(d0)
 
-    def fun(x):
+    def fun(x, q):
         return cone_distance(q, apex0 + x[2:5], _direction(d0, e1, e2, x[0], x[1]), x[5])
 
+    def jac(x, q):  # of the across-generator distance ρ cos α − h sin α (the data stay off the apex)
+        d, da, db = _direction_jac(d0, e1, e2, x[0], x[1])
+        w = q - (apex0 + x[2:5])
+        h, rho, u = _radial(w, d)
+        sa, ca = np.sin(x[5]), np.cos(x[5])
+        k = -(h * ca / np.maximum(rho, 1e-300) + sa)
+        d_apex = -ca * u + sa * d
+        return np.column_stack([k * (w @ da), k * (w @ db), d_apex, -rho * sa - h * ca])
+
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, alpha0])
-    res = _robust(fun, x0, _scale(fun(x0), scale, size))
+    res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     d = _direction(d0, e1, e2, res.x[0], res.x[1])
     apex = apex0 + res.x[2:5]
     alpha = float(res.x[5])
@@ -316,12 +367,15 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     spread = (heights.max() - heights.min()) * np.tan(alpha)  # change of radius across the patch
     if alpha < _MIN_ANGLE or np.linalg.norm(apex) > _HUGE * size or spread < _limit_tolerance(tolerance, res.fun):
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a cylinder)")
-    if not _better_than_cylinder(q, nrm, cone_distance(q, apex, d, alpha)):
-        return _failed("cone", len(pts), "degenerate (not significantly better than a cylinder)")
     if alpha > np.pi / 2 - _MIN_ANGLE:
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a plane)")
     if np.median((q - apex) @ d) < 0:
         return _failed("cone", len(pts), "points lie on the other nappe")
+    residuals = cone_distance(q, apex, d, alpha)
+    if tolerance is not None and not within_tolerance(deviation_stats(residuals), tolerance):
+        pass  # fails on its deviation below; the likelihood-ratio test would only cost a cylinder fit
+    elif not _better_than_cylinder(q, nrm, residuals):
+        return _failed("cone", len(pts), "degenerate (not significantly better than a cylinder)")
     apex = apex + mean
     h = float(np.mean((pts - apex) @ d))
     params = {
@@ -401,13 +455,22 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0 = c0 + z0 * d0
     e1, e2 = perpendicular_frame(d0)
 
-    def fun(x):
+    def fun(x, q):
         d = _direction(d0, e1, e2, x[0], x[1])
         hh, rr = _rho_z(q, c0 + x[2:5], d)
         return np.hypot(rr - x[5], hh) - x[6]
 
+    def jac(x, q):
+        d, da, db = _direction_jac(d0, e1, e2, x[0], x[1])
+        w = q - (c0 + x[2:5])
+        h, rho, u = _radial(w, d)
+        dist = np.maximum(np.hypot(rho - x[5], h), 1e-300)
+        k = h * x[5] / (dist * np.maximum(rho, 1e-300))  # ∂r/∂d = w · hR/(Dρ)
+        d_centre = -((rho - x[5]) / dist)[:, None] * u - (h / dist)[:, None] * d
+        return np.column_stack([k * (w @ da), k * (w @ db), d_centre, -(rho - x[5]) / dist, -np.ones(len(q))])
+
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, r_major0, r_minor0])
-    res = _robust(fun, x0, _scale(fun(x0), scale, size))
+    res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     d = _direction(d0, e1, e2, res.x[0], res.x[1])
     center = c0 + res.x[2:5] + mean
     big, small = float(res.x[5]), float(res.x[6])
