@@ -4,6 +4,7 @@ The public API is declared here once; implementation modules are private.
 """
 
 from .curves import CurveNetwork, curve_network
+from .deviation import DeviationReport, DeviationStats, FaceDeviation, deviation, plot_deviation
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
 from .mesh import CleanReport, Mesh, clean_mesh, input_labels, load_mesh
 from .skeleton2d import (
@@ -29,7 +30,10 @@ __all__ = [
     "CleanReport",
     "CurveNetwork",
     "DecompositionError",
+    "DeviationReport",
+    "DeviationStats",
     "ExportError",
+    "FaceDeviation",
     "FitError",
     "InputError",
     "Mesh",
@@ -42,9 +46,11 @@ __all__ = [
     "SkeletonResult",
     "default_omega_min",
     "default_spacing",
+    "deviation",
     "curve_network",
     "load_shape",
     "plot_decomposition",
+    "plot_deviation",
     "shape_from_curves",
     "resample_curves",
     "shape_from_mask",

@@ -6,6 +6,7 @@ with a name and colour per face, BREP or STL (:func:`write_shape`).
 
 from ._build import KIND_COLOURS, BrepResult, FaceRecord, Validity, build_solid, shape_validity
 from ._export import read_step_faces, write_shape
+from ._step_read import read_step  # noqa: F401  (recon compare; see recon.deviation)
 from ._surfaces import SurfaceModel, surface_model
 from ._tessellate import labelled_tessellation
 
