@@ -114,7 +114,7 @@ def measure(mask: np.ndarray, *, repeat: int) -> dict:
     t_recon = min(t for t, _ in runs)
     t_skel = min(out[1] for _, out in runs)
     res = runs[0][1][0]
-    t_ma, ma = best_time(lambda: medial_axis(mask), repeat)
+    t_ma, ma = best_time(lambda: medial_axis(mask, rng=0), repeat)  # rng: reproducible tie-breaking
     t_sk, sk = best_time(lambda: skeletonize(mask), repeat)
     t_skan, ma_graph = best_time(lambda: skan.Skeleton(ma), 1)
     edges = np.asarray(res.skeleton.edges).reshape(-1, 2)

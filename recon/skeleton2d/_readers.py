@@ -1,7 +1,7 @@
 """Reading 2D shapes (JSON curves, raster silhouettes, SVG paths) into a validated :class:`Shape2D`.
 
-Coordinates keep the file's own unit (JSON units, pixels, SVG user units) with y pointing up, so a
-plot of the shape is not upside down.
+Coordinates keep the file's own unit (JSON units; pixels for images; for SVG, px after the document's
+viewBox and transforms are applied) with y pointing up, so a plot of the shape is not upside down.
 """
 
 from __future__ import annotations
