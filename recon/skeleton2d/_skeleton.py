@@ -393,7 +393,8 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     - A skeleton vertex is the mean of the coincident circumcentres it merges; its radius their mean
       circumradius, i.e. the distance to its sites.
     - Pruned triangles belong to the part they hang from, so the parts tile the shape. A part holding no
-      skeleton vertex cannot arise (every piece between separators has a bridge endpoint in it).
+      skeleton vertex cannot arise: every piece between separators holds a bridge's endpoint, and a body
+      without separators holds its skeleton or the one vertex above.
 
     Raises
     ------
@@ -418,55 +419,59 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     s0, s1 = tri.sites[:, 0], tri.sites[:, 1]  # the two sites of each Voronoi edge
 
     # contract coincident circumcentres (co-circular samples) into one skeleton vertex
-    short = np.linalg.norm(cc[t] - cc[u], axis=1) <= MERGE_TOL * spacing
-    g = coo_matrix((np.ones(int(short.sum()), np.int8), (t[short], u[short])), shape=(m, m))
-    _, cluster = connected_components(g, directed=False)
+    cluster = np.arange(m)
+    short = np.flatnonzero(np.linalg.norm(cc[t] - cc[u], axis=1) <= MERGE_TOL * spacing)
+    if len(short):
+        nodes, inv = np.unique(np.r_[t[short], u[short]], return_inverse=True)
+        g = coo_matrix((np.ones(len(short), np.int8), (inv[:len(short)], inv[len(short):])), shape=(len(nodes),) * 2)
+        n_cl, lab = connected_components(g, directed=False)
+        rep_node = np.full(n_cl, m, dtype=np.int64)
+        np.minimum.at(rep_node, lab, nodes)
+        cluster[nodes] = rep_node[lab]
     ct, cu = cluster[t], cluster[u]
     real = kept & (ct != cu)
-    lo, hi = np.minimum(ct[real], cu[real]), np.maximum(ct[real], cu[real])
-    used = np.unique(np.r_[lo, hi])
+    ekey, rep, edge_of = np.unique(np.minimum(ct[real], cu[real]) * m + np.maximum(ct[real], cu[real]),
+                                   return_index=True, return_inverse=True)
+    if len(ekey) < int(real.sum()):
+        log.debug("skeletonize: %d parallel skeleton edges merged", int(real.sum()) - len(ekey))
+    used = np.unique(np.r_[ekey // m, ekey % m])
+    vid = np.full(m, -1, dtype=np.int64)
+    vid[used] = np.arange(len(used))
+    edges = np.stack([vid[ekey // m], vid[ekey % m]], axis=1).reshape(-1, 2)
 
-    # bodies without any skeleton edge (a disk, or ω_min too large) get one vertex: their largest empty circle
-    body_g = coo_matrix((np.ones(len(t), np.int8), (t, u)), shape=(m, m))
-    _, body = connected_components(body_g, directed=False)
-    ins = np.flatnonzero(inside)
-    has = np.zeros(body.max() + 1, dtype=bool)
-    has[body[np.isin(cluster, used) & inside]] = True
-    lonely = ins[~has[body[ins]]]
-    if len(lonely):
-        # the largest empty circle whose centre lies in its own triangle (an acute triangle), so it is inside
+    # §3: degrees, bridges, parts
+    degree = sg.vertex_degree(edges, len(used))
+    bridge = sg.bridge_mask(edges, degree)
+    cut = np.zeros(len(t), dtype=bool)
+    cut[np.flatnonzero(real)] = bridge[edge_of]
+    n_parts, label = sg.cut_components(m, pairs, cut, active=inside)
+
+    # a body without any skeleton edge (a disk, or ω_min too large) is one part without a vertex: give it one,
+    # the centre of the largest empty circle that lies in its own (acute) triangle, hence inside the body
+    tri_vertex = np.where(inside, vid[cluster], -1)  # skeleton vertex of each triangle, -1: none
+    part_has = np.bincount(label[tri_vertex >= 0], minlength=n_parts) > 0
+    if not part_has.all():
+        lonely = np.flatnonzero(inside & ~part_has[np.maximum(label, 0)])
         q = points[simp[lonely]]
         acute = np.all(np.einsum("tij,tij->ti", np.roll(q, -1, axis=1) - q, np.roll(q, 1, axis=1) - q) >= 0, axis=1)
         score = np.where(acute, rr[lonely], -1.0 / (1.0 + rr[lonely]))
-        o = lonely[np.lexsort((-score, body[lonely]))]
-        best = o[np.r_[True, body[o][1:] != body[o][:-1]]]
-        used = np.unique(np.r_[used, cluster[best]])
+        o = lonely[np.lexsort((-score, label[lonely]))]
+        best = cluster[o[np.r_[True, label[o][1:] != label[o][:-1]]]]
+        vid[best] = len(used) + np.arange(len(best))
+        used = np.r_[used, best]
+        degree = np.r_[degree, np.zeros(len(best), dtype=np.int64)]
+        tri_vertex = np.where(inside, vid[cluster], -1)
         log.info("skeletonize: %d bodies have a one-point skeleton", len(best))
 
-    vid = np.full(cluster.max() + 1, -1, dtype=np.int64)
-    vid[used] = np.arange(len(used))
-    tri_vertex = np.where(inside, vid[cluster], -1)  # skeleton vertex of each triangle, -1: none
     has_v = tri_vertex >= 0
     n_v = len(used)
     cnt = np.bincount(tri_vertex[has_v], minlength=n_v)
     vertices = np.stack([np.bincount(tri_vertex[has_v], weights=cc[has_v, i], minlength=n_v) for i in range(2)], axis=1) / cnt[:, None]
     radius = np.bincount(tri_vertex[has_v], weights=rr[has_v], minlength=n_v) / cnt
-
-    ekey, rep, edge_of = np.unique(vid[lo] * n_v + vid[hi], return_index=True, return_inverse=True)
-    edges = np.stack([ekey // n_v, ekey % n_v], axis=1) if n_v else np.zeros((0, 2), np.int64)
-    if len(ekey) < len(lo):
-        log.debug("skeletonize: %d parallel skeleton edges merged", len(lo) - len(ekey))
-
-    # §3: degrees, bridges, parts
-    degree = sg.vertex_degree(edges, n_v)
-    bridge = sg.bridge_mask(edges, degree)
-    cut = np.zeros(len(t), dtype=bool)
-    cut[np.flatnonzero(real)] = bridge[edge_of]
-    n_parts, label = sg.cut_components(m, pairs, cut, active=inside)
     vpart = np.full(n_v, -1, dtype=np.int64)
     vpart[tri_vertex[has_v]] = label[has_v]
     kinds = sg.part_kinds(vpart, degree, n_parts)
-    if np.any(kinds == sg.NO_SKELETON):  # pragma: no cover - see Notes
+    if np.any(kinds == sg.NO_SKELETON):  # pragma: no cover - cannot happen, see Notes
         log.warning("skeletonize: %d parts hold no skeleton vertex; labelled terminal", int(np.sum(kinds == sg.NO_SKELETON)))
         kinds[kinds == sg.NO_SKELETON] = sg.TERMINAL
 
