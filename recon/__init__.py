@@ -6,6 +6,7 @@ The public API is declared here once; implementation modules are private.
 from .curves import CurveNetwork, curve_network
 from .deviation import DeviationReport, DeviationStats, FaceDeviation, deviation, plot_deviation
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
+from .fit import CurveFit, SurfaceFit, fit_curve, fit_surface, noise_sigma
 from .mesh import CleanReport, Mesh, clean_mesh, input_labels, load_mesh
 from .skeleton2d import (
     Part2D,
@@ -28,6 +29,7 @@ __version__ = "0.1.0"
 __all__ = [
     "BrepError",
     "CleanReport",
+    "CurveFit",
     "CurveNetwork",
     "DecompositionError",
     "DeviationReport",
@@ -35,6 +37,10 @@ __all__ = [
     "ExportError",
     "FaceDeviation",
     "FitError",
+    "SurfaceFit",
+    "fit_curve",
+    "fit_surface",
+    "noise_sigma",
     "InputError",
     "Mesh",
     "MeshError",
