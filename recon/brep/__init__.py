@@ -8,7 +8,7 @@ from ._build import KIND_COLOURS, BrepResult, FaceRecord, Validity, build_solid,
 from ._export import read_step_faces, write_shape
 from ._step_read import read_step  # noqa: F401  (recon compare; see recon.deviation)
 from ._surfaces import SurfaceModel, surface_model
-from ._tessellate import labelled_tessellation
+from ._tessellate import labelled_tessellation, result_tessellation
 
 __all__ = [
     "KIND_COLOURS",
@@ -18,6 +18,7 @@ __all__ = [
     "Validity",
     "build_solid",
     "labelled_tessellation",
+    "result_tessellation",
     "read_step_faces",
     "shape_validity",
     "surface_model",

@@ -15,7 +15,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import BrepError, InputError
 
-__all__ = ["labelled_tessellation"]
+__all__ = ["labelled_tessellation", "result_tessellation"]
 
 log = logging.getLogger(__name__)
 
@@ -102,3 +102,16 @@ def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, wel
     f = inverse[f]
     good = (f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 2] != f[:, 0])
     return v[keep], f[good], lab[good], surfaces
+
+
+def result_tessellation(result, *, deflection: float):
+    """Tessellate a :class:`~recon.brep.BrepResult` for pictures: vertices, faces, face label per triangle, and
+    the part kind (``"patch"``, ``"linear"``, ``"junction"``, ``"terminal"``) of every label."""
+    v, f, lab, _ = labelled_tessellation(result.shape, deflection=deflection)
+    kinds = []
+    exp = TopExp_Explorer(_wrapped(result.shape), TopAbs_FACE)
+    while exp.More():
+        face = exp.Current()
+        kinds.append(next((r.kind for r in result.faces if r.face is not None and r.face.IsSame(face)), "patch"))
+        exp.Next()
+    return v, f, lab, kinds

@@ -1,0 +1,321 @@
+"""The main job: mesh → decomposition → fitted surfaces → curve network → B-rep solid → report.
+
+Every stage is its own module; this one only chains them, times them and gathers the figures a user
+judges a reconstruction by (faces by type, deviation from the mesh, validity, time per stage).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from .decompose import Decomposition, decompose
+from .errors import BrepError, InputError
+from .fit import SurfaceFit, default_tolerance, fit_surface
+from .mesh import Mesh, clean_mesh, load_mesh
+
+__all__ = ["Conversion", "convert", "face_labels", "STAGES"]
+
+log = logging.getLogger(__name__)
+
+#: The stages in the order they run; progress callbacks receive these names.
+STAGES = ("load", "decompose", "fit", "brep", "deviation")
+
+#: A part needs this many distinct vertices to carry a surface of its own (``fit_surface`` needs 16).
+MIN_PART_VERTICES = 16
+
+Progress = Callable[[str, float], None]
+
+
+@dataclass(frozen=True)
+class Conversion:
+    """Result of :func:`convert`.
+
+    Attributes
+    ----------
+    shape : build123d Solid, Shell or Compound
+        The B-rep: keep modelling on it in build123d, or ``cadquery.Shape.cast(shape.wrapped)``.
+    report : dict
+        Plain-JSON figures: faces by type, deviation, validity, time per stage, per-face records.
+    mesh : Mesh
+    decomposition : Decomposition
+    labels : (m,) int
+        The face label of every cleaned triangle (the decomposition with sharp features dissolved).
+    fits : dict of int → SurfaceFit
+    brep : recon.brep.BrepResult
+    """
+
+    shape: Any
+    report: dict
+    mesh: Mesh
+    decomposition: Decomposition
+    labels: np.ndarray
+    fits: dict
+    brep: Any
+    extra: dict = field(default_factory=dict, compare=False, repr=False)
+
+
+def _faces_adjacency(mesh: Mesh) -> np.ndarray:
+    return np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+
+
+def _majority_neighbour(labels: np.ndarray, pairs: np.ndarray, movable: np.ndarray) -> np.ndarray:
+    """For every triangle in ``movable``, the most frequent label among its non-movable neighbours (−1 if none)."""
+    a, b = pairs[:, 0], pairs[:, 1]
+    rows = np.concatenate([a, b])
+    nbr = np.concatenate([labels[b], labels[a]])
+    keep = movable[rows] & ~movable[np.concatenate([b, a])]
+    rows, nbr = rows[keep], nbr[keep]
+    out = np.full(len(labels), -1, dtype=np.int64)
+    if len(rows) == 0:
+        return out
+    order = np.lexsort((nbr, rows))
+    rows, nbr = rows[order], nbr[order]
+    key_change = np.r_[True, (rows[1:] != rows[:-1]) | (nbr[1:] != nbr[:-1])]
+    starts = np.flatnonzero(key_change)
+    counts = np.diff(np.r_[starts, len(rows)])
+    r, n = rows[starts], nbr[starts]
+    best = np.lexsort((-counts, r))  # per row, highest count first
+    r, n = r[best], n[best]
+    first = np.r_[True, r[1:] != r[:-1]]
+    out[r[first]] = n[first]
+    return out
+
+
+def _absorb(labels: np.ndarray, pairs: np.ndarray, movable: np.ndarray) -> np.ndarray:
+    """Give every movable triangle the label of the region it touches most, growing inwards layer by layer."""
+    labels = labels.copy()
+    movable = movable.copy()
+    while movable.any():
+        nbr = _majority_neighbour(labels, pairs, movable)
+        take = movable & (nbr >= 0)
+        if not take.any():
+            break  # an island of movable triangles touching nothing else: leave it as it is
+        labels[take] = nbr[take]
+        movable[take] = False
+    return labels
+
+
+def face_labels(mesh: Mesh, dec: Decomposition) -> np.ndarray:
+    """The label of the B-rep face every triangle will belong to.
+
+    A sharp linear part or junction yields no face (its edge or vertex is where its neighbours' surfaces
+    meet), so its triangles go to the neighbouring parts, each to the one it touches most; parts too small
+    to carry a surface of their own (fewer than :data:`MIN_PART_VERTICES` vertices) likewise. Labels are
+    renumbered 0..k−1 in order of first appearance so that they are deterministic.
+    """
+    labels = np.asarray(dec.labels, dtype=np.int64)
+    pairs = _faces_adjacency(mesh)
+    sharp = np.array([p.kind != "patch" and p.sharp for p in dec.parts], dtype=bool)
+    labels = _absorb(labels, pairs, sharp[labels])
+    # Parts too small for a surface of their own.
+    for _ in range(3):
+        nverts = _vertex_counts(mesh.faces, labels)
+        small = nverts[labels] < MIN_PART_VERTICES
+        if not small.any() or small.all():
+            break
+        labels = _absorb(labels, pairs, small)
+    # Split labels that fell apart into several connected pieces (each piece is its own face).
+    labels = _split_disconnected(labels, pairs)
+    _, first = np.unique(labels, return_index=True)
+    order = np.argsort(first)
+    remap = np.empty(labels.max() + 1, dtype=np.int64)
+    remap[np.unique(labels)[order]] = np.arange(len(order))
+    return remap[labels]
+
+
+def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    k = int(labels.max()) + 1
+    pairs = np.unique(np.column_stack([np.repeat(labels, 3), faces.ravel()]), axis=0)
+    return np.bincount(pairs[:, 0], minlength=k)
+
+
+def _split_disconnected(labels: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    same = labels[pairs[:, 0]] == labels[pairs[:, 1]]
+    a, b = pairs[same].T
+    m = len(labels)
+    graph = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(m, m))
+    _, comp = sp.csgraph.connected_components(graph, directed=False)
+    return comp
+
+
+def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.ndarray, areas: np.ndarray):
+    vn = np.zeros_like(vertices)
+    w = face_normals * areas[:, None]
+    for k in range(3):
+        np.add.at(vn, faces[:, k], w)
+    n = np.linalg.norm(vn, axis=1)
+    return vn / np.where(n > 0, n, 1.0)[:, None]
+
+
+def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float) -> dict[int, SurfaceFit]:
+    V, F = mesh.vertices, mesh.faces
+    vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
+    fits = {}
+    for p in range(labels.max() + 1):
+        tris = F[order[bounds[p] : bounds[p + 1]]]
+        ids, local = np.unique(tris, return_inverse=True)
+        fit = fit_surface(V[ids], vn[ids], tolerance=tolerance, faces=local.reshape(-1, 3))
+        if not fit.params:  # nothing at all could be fitted: the B-spline must carry it
+            log.warning("part %d: no surface fits (%s)", p, fit.reason)
+        fits[p] = fit
+    return fits
+
+
+def convert(
+    mesh: Mesh | str | os.PathLike,
+    *,
+    tolerance: float | None = None,
+    scale: float | None = None,
+    deviation: bool = True,
+    progress: Progress | None = None,
+) -> Conversion:
+    """Reconstruct a B-rep from a triangle mesh.
+
+    Parameters
+    ----------
+    mesh : Mesh or path
+        A cleaned :class:`recon.mesh.Mesh`, or a mesh file (STL, OBJ, PLY, OFF, 3MF, GLB).
+    tolerance : float, optional
+        Model units. A surface type is accepted for a part when its points lie within it (99th percentile,
+        max within twice it); edges are kept as lines/circles within it. Default: max(4σ, 10⁻⁴ · diagonal)
+        with σ the mesh's estimated noise (:func:`recon.fit.default_tolerance`).
+    scale : float, optional
+        Feature scale of the decomposition (model units); default estimated from the mesh.
+    deviation : bool
+        Measure the deviation between the mesh and the result (both ways) for the report.
+    progress : callable(stage, fraction), optional
+        Called with a stage name from :data:`STAGES` and 0.0 when it starts, 1.0 when it ends.
+
+    Returns
+    -------
+    Conversion
+    """
+    from .brep import build_solid  # the CAD kernel loads only when a B-rep is wanted
+    from .curves import curve_network
+
+    def step(name, frac):
+        if progress is not None:
+            progress(name, frac)
+
+    times: dict[str, float] = {}
+    t = time.perf_counter()
+    step("load", 0.0)
+    if isinstance(mesh, (str, os.PathLike)):
+        mesh = load_mesh(mesh)
+    elif not isinstance(mesh, Mesh):
+        if isinstance(mesh, tuple) and len(mesh) == 2:
+            mesh = clean_mesh(*mesh)
+        else:
+            raise InputError(f"convert: `mesh` must be a Mesh, a path or (vertices, faces), got {type(mesh).__name__}")
+    times["load"] = time.perf_counter() - t
+    step("load", 1.0)
+
+    t = time.perf_counter()
+    step("decompose", 0.0)
+    dec = decompose(mesh, scale=scale)
+    labels = face_labels(mesh, dec)
+    times["decompose"] = time.perf_counter() - t
+    step("decompose", 1.0)
+
+    if tolerance is None:
+        tolerance = max(4.0 * float(dec.noise), 1e-4 * mesh.diagonal)
+        log.info("tolerance %.4g (from noise %.3g)", tolerance, dec.noise)
+    elif not tolerance > 0:
+        raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")
+
+    t = time.perf_counter()
+    step("fit", 0.0)
+    fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    times["fit"] = time.perf_counter() - t
+    step("fit", 1.0)
+
+    t = time.perf_counter()
+    step("brep", 0.0)
+    kinds = _face_kinds(dec, labels)
+    network = curve_network(mesh.vertices, mesh.faces, labels)
+    try:
+        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds)
+    except BrepError:
+        raise
+    times["brep"] = time.perf_counter() - t
+    step("brep", 1.0)
+
+    dev = None
+    if deviation:
+        from .deviation import deviation as measure
+
+        t = time.perf_counter()
+        step("deviation", 0.0)
+        dev = measure(mesh.vertices, mesh.faces, brep.shape)
+        times["deviation"] = time.perf_counter() - t
+        step("deviation", 1.0)
+
+    report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance)
+    return Conversion(brep.shape, report, mesh, dec, labels, fits, brep)
+
+
+def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
+    """Kind of each face label: the kind of the decomposition part most of its triangles came from."""
+    kinds_of_part = np.array([p.kind for p in dec.parts])
+    out = {}
+    orig = np.asarray(dec.labels)
+    for p in range(labels.max() + 1):
+        votes = Counter(kinds_of_part[orig[labels == p]].tolist())
+        out[p] = votes.most_common(1)[0][0]
+    return out
+
+
+def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
+    diag = float(mesh.diagonal)
+    val = brep.validity
+    faces = []
+    for r in brep.faces:
+        fit = fits.get(r.part)
+        faces.append(
+            {
+                "name": r.name,
+                "part": int(r.part),
+                "kind": r.kind,
+                "surface": r.surface_type,
+                "status": r.status,
+                "area": float(r.area),
+                "fit_max": float(fit.deviation["max"]) if fit is not None else None,
+                "fit_rms": float(fit.deviation["rms"]) if fit is not None else None,
+            }
+        )
+    report = {
+        "mesh": {
+            "triangles": int(len(mesh.faces)),
+            "input_triangles": int(mesh.n_input_faces),
+            "diagonal": diag,
+            "cleaning": mesh.report.summary(),
+        },
+        "tolerance": float(tolerance),
+        "decomposition": dec.counts(),
+        "faces_by_type": dict(Counter(r.surface_type for r in brep.faces)),
+        "n_faces": int(val.n_faces),
+        "validity": {
+            "ok": bool(brep.ok),
+            "shape_type": val.shape_type,
+            "valid": bool(val.valid),
+            "closed": bool(val.closed),
+            "free_edges": int(val.free_edges),
+            "volume": float(val.volume),
+        },
+        "warnings": list(brep.warnings),
+        "seconds": {k: round(v, 4) for k, v in times.items()},
+        "faces": faces,
+    }
+    if dev is not None:
+        report["deviation"] = dev.to_json()
+    return report
