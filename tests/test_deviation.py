@@ -201,3 +201,39 @@ def test_bad_step(tmp_path):
     junk.write_text("not a step file\n")
     with pytest.raises(InputError):
         deviation(ico.vertices, ico.faces, junk)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [lambda: bd.fillet(bd.Box(40, 30, 20).edges(), 3) - bd.Cylinder(5, 30), lambda: bd.Cone(5, 2, 10)],
+    ids=["filleted_box_with_hole", "cone"],
+)
+def test_matches_brep_extrema_and_solid_classifier(make):
+    # Differential test against the slow, obviously correct path: BRepExtrema_DistShapeShape to
+    # the faces for the value, the solid classifier for the sign (the cone's rim is an obtuse
+    # edge, where one face's normal alone gives the wrong sign).
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.TopoDS import TopoDS_Compound
+
+    shape = make()
+    faces = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(faces)
+    for face in faces_of(shape.wrapped):
+        builder.Add(faces, face)
+    box = shape.bounding_box()
+    lo, hi = np.array([box.min.X, box.min.Y, box.min.Z]), np.array([box.max.X, box.max.Y, box.max.Z])
+    p = np.random.default_rng(8).uniform(lo - 3, hi + 3, (150, 3))
+    # Below the cone's bottom rim, 81° down from horizontal: inside the wedge where the rim is the
+    # nearest point and the cone face's own normal (tilted 17° up) points away from the point.
+    theta = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    p = np.vstack([p, np.column_stack([5.3 * np.cos(theta), 5.3 * np.sin(theta), np.full(12, -7.0)])])
+    s, _, _ = BrepDistance(shape.wrapped).signed_distance(p)
+    ref = np.array([
+        BRepExtrema_DistShapeShape(BRepBuilderAPI_MakeVertex(gp_Pnt(*q)).Vertex(), faces).Value() for q in p
+    ])
+    np.testing.assert_allclose(np.abs(s), ref, atol=1e-7)
+    inside = np.array([shape.is_inside(tuple(q)) for q in p])
+    assert np.array_equal(s < 0, inside)

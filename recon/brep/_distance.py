@@ -491,29 +491,12 @@ class BrepDistance:
                         best[i], foot[i] = dq, q
         return best, foot
 
-    def face_signed_distance(self, index: int, points, *, uv0=None):
-        """Exact signed distance from ``points`` to face ``index`` (trimmed).
-
-        Parameters
-        ----------
-        index : int
-            Face index.
-        points : (n, 3) float
-        uv0 : (n, 2) float, optional
-            Start (u, v) for non-analytic surfaces; default: UV of the nearest tessellation node.
-
-        Returns
-        -------
-        signed : (n,) float
-            Distance, positive on the outward side of the face.
-        foot : (n, 3) float
-            Nearest point of the face.
-        """
+    def _face_query(self, index: int, p, *, uv0=None):
+        """Unsigned distance, nearest point and outward normal there: (n,), (n, 3), (n, 3)."""
         fd = self._faces[index]
-        p = np.asarray(points, dtype=float).reshape(-1, 3)
         n = len(p)
         if n == 0:
-            return np.empty(0), np.empty((0, 3))
+            return np.empty(0), np.empty((0, 3)), np.empty((0, 3))
         if fd.kind in _ANALYTIC:
             cands = self._critical_points(fd, p)
         else:
@@ -545,8 +528,30 @@ class BrepDistance:
             if len(sel):
                 nrm[sel] = self._geometric_normal(fd, foot[sel])
         best[~np.isfinite(best)] = np.nan
-        sign = np.sign(np.einsum("ij,ij->i", p - foot, nrm) * fd.sense)
-        return np.where(sign < 0, -best, best), foot
+        return best, foot, nrm * fd.sense
+
+    def face_signed_distance(self, index: int, points, *, uv0=None):
+        """Exact signed distance from ``points`` to face ``index`` (trimmed).
+
+        Parameters
+        ----------
+        index : int
+            Face index.
+        points : (n, 3) float
+        uv0 : (n, 2) float, optional
+            Start (u, v) for non-analytic surfaces; default: UV of the nearest tessellation node.
+
+        Returns
+        -------
+        signed : (n,) float
+            Distance, positive on the outward side of the face.
+        foot : (n, 3) float
+            Nearest point of the face.
+        """
+        p = np.asarray(points, dtype=float).reshape(-1, 3)
+        dist, foot, nrm = self._face_query(index, p, uv0=uv0)
+        sign = np.sign(np.einsum("ij,ij->i", p - foot, nrm))
+        return np.where(sign < 0, -dist, dist), foot
 
     # ------------------------------------------------------------------ public queries
     def signed_distance(self, points, *, neighbours: int = 16):
@@ -587,9 +592,10 @@ class BrepDistance:
         pair_point, pair_face = key // nf, key % nf
 
         best = np.full(n, np.inf)
-        signed = np.full(n, np.nan)
         nearest = np.full(n, -1, dtype=np.int64)
         foot = np.full((n, 3), np.nan)
+        normal = np.zeros((n, 3))
+        tol = 1e-9 * self.diagonal
         order = np.argsort(pair_face, kind="stable")
         bounds = np.searchsorted(pair_face[order], np.arange(nf + 1))
         for f in range(nf):
@@ -597,12 +603,16 @@ class BrepDistance:
             if not len(sel):
                 continue
             pts = pair_point[sel]
-            s, ft = self.face_signed_distance(f, p[pts], uv0=self._sample_uv[sample_of_pair[sel]])
-            a = np.abs(s)
-            better = a < best[pts]
+            a, ft, nv = self._face_query(f, p[pts], uv0=self._sample_uv[sample_of_pair[sel]])
+            # Where faces meet (an edge or vertex is the nearest point) the sign comes from the sum
+            # of their normals, the pseudo-normal: one face's normal is wrong at an obtuse edge.
+            tie = (np.abs(a - best[pts]) <= tol) & (np.linalg.norm(ft - foot[pts], axis=1) <= tol)
+            normal[pts[tie]] += nv[tie]
+            better = (a < best[pts] - tol) | ~np.isfinite(best[pts])
             i = pts[better]
-            best[i], signed[i], nearest[i], foot[i] = a[better], s[better], f, ft[better]
-        return signed, nearest, foot
+            best[i], nearest[i], foot[i], normal[i] = a[better], f, ft[better], nv[better]
+        sign = np.sign(np.einsum("ij,ij->i", p - foot, normal))
+        return np.where(sign < 0, -best, best), nearest, foot
 
     def surface_samples(self, count: int, *, rng=None):
         """Points exactly on the faces: every tessellation node plus ``count`` area-uniform points.
@@ -629,7 +639,7 @@ class BrepDistance:
             p, uv, _ = self._triangle_samples(fd, area, k, rng)
             if len(p):
                 # Samples on the triangles lie within the deflection; move them onto the face.
-                _, on = self.face_signed_distance(fd.index, p, uv0=uv)
+                _, on, _ = self._face_query(fd.index, p, uv0=uv)
                 pts.append(on)
                 fid.append(np.full(len(on), fd.index))
         return np.vstack(pts), np.concatenate(fid).astype(np.int64)
