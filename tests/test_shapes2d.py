@@ -98,6 +98,17 @@ def test_diagonal_pixel_chain_stays_one_curve():
     assert len(shape.curves) == 1
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_traced_curves_pass_full_validation_even_on_salt_and_pepper(seed):
+    """shape_from_mask skips the shapely checks because marching squares cannot make crossing curves: check it
+    on random pixels, where every kind of saddle and diagonal contact occurs."""
+    mask = np.random.default_rng(seed).random((60, 60)) < 0.5
+    shape = shape_from_mask(mask)
+    assert len(shape.curves) > 10
+    again = shape_from_curves(list(shape.curves))  # raises InputError on any crossing or touching
+    assert len(again.curves) == len(shape.curves)
+
+
 @pytest.mark.parametrize(
     "mode",
     ["L01", "L255", "P01", "RGB", "RGBA_alpha", "1"],
