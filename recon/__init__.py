@@ -8,6 +8,7 @@ from .deviation import DeviationReport, DeviationStats, FaceDeviation, deviation
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
 from .fit import CurveFit, SurfaceFit, fit_curve, fit_surface, noise_sigma
 from .mesh import CleanReport, Mesh, clean_mesh, input_labels, load_mesh
+from .pipeline import Conversion, convert
 from .skeleton2d import (
     Part2D,
     SegmentGraph,
@@ -29,6 +30,8 @@ __version__ = "0.1.0"
 __all__ = [
     "BrepError",
     "CleanReport",
+    "Conversion",
+    "convert",
     "CurveFit",
     "CurveNetwork",
     "DecompositionError",

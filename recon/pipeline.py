@@ -103,18 +103,41 @@ def _absorb(labels: np.ndarray, pairs: np.ndarray, movable: np.ndarray) -> np.nd
     return labels
 
 
-def face_labels(mesh: Mesh, dec: Decomposition) -> np.ndarray:
+def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarray:
     """The label of the B-rep face every triangle will belong to.
 
-    A sharp linear part or junction yields no face (its edge or vertex is where its neighbours' surfaces
-    meet), so its triangles go to the neighbouring parts, each to the one it touches most; parts too small
-    to carry a surface of their own (fewer than :data:`MIN_PART_VERTICES` vertices) likewise. Labels are
-    renumbered 0..k−1 in order of first appearance so that they are deterministic.
+    A sharp linear part or junction yields no face: its edge (or vertex) is where its neighbours' surfaces
+    meet. So each of its triangles goes to the neighbouring patch whose fitted surface passes closest to the
+    triangle's centroid — the patch it really lies on (for a junction, the patches next to its neighbours
+    count too). Parts too small to carry a surface of their own (fewer than :data:`MIN_PART_VERTICES`
+    vertices) join the part they touch most. A label whose triangles fell apart becomes one label per
+    connected piece. Labels are renumbered 0..k−1 in order of first appearance, so they are deterministic.
     """
-    labels = np.asarray(dec.labels, dtype=np.int64)
+    labels = np.asarray(dec.labels, dtype=np.int64).copy()
     pairs = _faces_adjacency(mesh)
-    sharp = np.array([p.kind != "patch" and p.sharp for p in dec.parts], dtype=bool)
-    labels = _absorb(labels, pairs, sharp[labels])
+    parts = dec.parts
+    is_patch = np.array([p.kind == "patch" for p in parts], dtype=bool)
+    dissolve = [p.id for p in parts if p.kind != "patch" and p.sharp]
+    if dissolve:
+        wanted = set()
+        candidates = {}
+        for pid in dissolve:
+            near = {n for n in parts[pid].neighbours if is_patch[n]}
+            if not near:
+                near = {m for n in parts[pid].neighbours for m in parts[n].neighbours if is_patch[m]}
+            candidates[pid] = sorted(near)
+            wanted.update(near)
+        patch_fits = _fit_parts(mesh, labels, tolerance=tolerance, only=sorted(wanted))
+        centroids = mesh.face_centroids
+        for pid in dissolve:
+            cands = [c for c in candidates[pid] if patch_fits[c].params]
+            if not cands:
+                continue
+            tris = np.flatnonzero(labels == pid)
+            d = np.stack([np.abs(patch_fits[c].distance(centroids[tris])) for c in cands])
+            labels[tris] = np.asarray(cands)[np.argmin(d, axis=0)]
+        leftover = np.isin(labels, [pid for pid in dissolve])
+        labels = _absorb(labels, pairs, leftover)
     # Parts too small for a surface of their own.
     for _ in range(3):
         nverts = _vertex_counts(mesh.faces, labels)
@@ -122,7 +145,7 @@ def face_labels(mesh: Mesh, dec: Decomposition) -> np.ndarray:
         if not small.any() or small.all():
             break
         labels = _absorb(labels, pairs, small)
-    # Split labels that fell apart into several connected pieces (each piece is its own face).
+    # A label that fell apart into several connected pieces: each piece is its own face.
     labels = _split_disconnected(labels, pairs)
     _, first = np.unique(labels, return_index=True)
     order = np.argsort(first)
@@ -155,15 +178,20 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.nd
     return vn / np.where(n > 0, n, 1.0)[:, None]
 
 
-def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float) -> dict[int, SurfaceFit]:
+def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None) -> dict[int, SurfaceFit]:
+    """One surface per label (or per label in ``only``), fitted to the label's vertices with their normals."""
     V, F = mesh.vertices, mesh.faces
     vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
     fits = {}
-    for p in range(labels.max() + 1):
+    for p in range(labels.max() + 1) if only is None else only:
         tris = F[order[bounds[p] : bounds[p + 1]]]
         ids, local = np.unique(tris, return_inverse=True)
+        if len(ids) < MIN_PART_VERTICES:
+            fits[p] = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(ids), False,
+                                 f"{len(ids)} vertices: too few for a surface")
+            continue
         fit = fit_surface(V[ids], vn[ids], tolerance=tolerance, faces=local.reshape(-1, 3))
         if not fit.params:  # nothing at all could be fitted: the B-spline must carry it
             log.warning("part %d: no surface fits (%s)", p, fit.reason)
@@ -223,7 +251,6 @@ def convert(
     t = time.perf_counter()
     step("decompose", 0.0)
     dec = decompose(mesh, scale=scale)
-    labels = face_labels(mesh, dec)
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
@@ -235,6 +262,7 @@ def convert(
 
     t = time.perf_counter()
     step("fit", 0.0)
+    labels = face_labels(mesh, dec, tolerance=tolerance)
     fits = _fit_parts(mesh, labels, tolerance=tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)
@@ -265,13 +293,14 @@ def convert(
 
 
 def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
-    """Kind of each face label: the kind of the decomposition part most of its triangles came from."""
+    """Kind of each face label: "patch" if it holds a smooth patch, else the kind most of its triangles came from."""
     kinds_of_part = np.array([p.kind for p in dec.parts])
     out = {}
     orig = np.asarray(dec.labels)
     for p in range(labels.max() + 1):
         votes = Counter(kinds_of_part[orig[labels == p]].tolist())
-        out[p] = votes.most_common(1)[0][0]
+        # A face that holds any patch is a patch that absorbed a sharp edge strip, not a blend.
+        out[p] = "patch" if votes["patch"] else votes.most_common(1)[0][0]
     return out
 
 

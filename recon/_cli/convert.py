@@ -81,21 +81,24 @@ def run(args) -> int:
         raise InputError(f"--tolerance must be a positive length, got {args.tolerance}")
     if args.scale is not None and not args.scale > 0:
         raise InputError(f"--scale must be a positive length, got {args.scale}")
-    for opt in (args.report, args.preview):
+    for opt in (args.out, args.report, args.preview):
         if opt and not Path(opt).parent.exists():
             raise InputError(f"cannot write {opt}: folder {Path(opt).parent} does not exist")
 
     from .._io import write_json
     from ..brep import write_shape
-    from ..convert import convert
+    from ..pipeline import convert
 
-    print(f"recon convert {args.mesh}", file=sys.stderr)
+    # Progress lines only on a terminal: piped stderr carries the summary, or one line on error.
+    tty = sys.stderr.isatty()
+    if tty:
+        print(f"recon convert {args.mesh}", file=sys.stderr)
     result = convert(
         args.mesh,
         tolerance=args.tolerance,
         scale=args.scale,
         deviation=not args.no_deviation,
-        progress=_Progress(sys.stderr),
+        progress=_Progress(sys.stderr) if tty else None,
     )
     write_shape(out, result.brep, name=out.stem)
     if args.report:

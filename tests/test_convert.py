@@ -1,0 +1,96 @@
+"""`recon convert` end to end: ground truth on a part whose true faces are known, and bad input."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+from recon._freecad import freecadcmd, inspect_step
+
+
+def _recon(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "recon", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def sharp_box(tmp_path_factory):
+    """A 30 × 20 × 10 box meshed with ~1 mm triangles: 6 true faces, all planes, volume 6000."""
+    d = tmp_path_factory.mktemp("box")
+    mesh = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
+    path = d / "box.stl"
+    mesh.export(path)
+    proc = _recon("convert", path, d / "box.step", "--report", d / "box.json", "--preview", d / "box.png", cwd=d)
+    return d, proc
+
+
+def test_sharp_box_gives_six_planes_and_the_exact_volume(sharp_box):
+    d, proc = sharp_box
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    report = json.loads((d / "box.json").read_text())
+    assert report["n_faces"] == 6
+    assert report["faces_by_type"] == {"plane": 6}
+    v = report["validity"]
+    assert v["ok"] and v["closed"] and v["free_edges"] == 0
+    assert v["volume"] == pytest.approx(6000.0, rel=1e-9)
+    # The mesh lies exactly on the true planes, so the deviation is round-off.
+    assert report["deviation"]["mesh_to_shape"]["max"] < 1e-9 * report["mesh"]["diagonal"]
+    assert set(report["seconds"]) == {"load", "decompose", "fit", "brep", "deviation"}
+    assert (d / "box.png").stat().st_size > 10_000
+    assert "faces: 6 (6 plane)" in proc.stderr
+
+
+def test_step_round_trip_and_face_names(sharp_box):
+    d, _ = sharp_box
+    from build123d import import_step
+
+    from recon.brep import read_step_faces
+
+    solid = import_step(str(d / "box.step"))
+    assert solid.is_valid and solid.volume == pytest.approx(6000.0, rel=1e-9)
+    names = [n for n, _ in read_step_faces(d / "box.step")]
+    assert sorted(names) == sorted(f"patch_{i}" for i in range(6))
+
+
+@pytest.mark.skipif(freecadcmd() is None, reason="FreeCAD (freecadcmd) not installed")
+def test_freecad_opens_one_valid_solid(sharp_box):
+    d, _ = sharp_box
+    (obj,) = inspect_step(d / "box.step")["objects"]
+    assert obj["type"] == "Solid" and obj["valid"] and obj["closed"]
+    assert obj["faces"] == 6 and obj["volume"] == pytest.approx(6000.0, rel=1e-9)
+
+
+def test_python_api_returns_a_build123d_solid_to_keep_modelling():
+    import build123d as bd
+
+    from recon import convert
+
+    mesh = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
+    result = convert((mesh.vertices, mesh.faces), deviation=False)
+    assert isinstance(result.shape, bd.Solid)
+    # Drill a through hole in the reconstruction: the volume drops by exactly the cylinder's.
+    drilled = result.shape - bd.Cylinder(3, 40)
+    assert drilled.volume == pytest.approx(6000.0 - np.pi * 9 * 10, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "make_args, message",
+    [
+        (lambda d: ("convert", d / "missing.stl", d / "o.step"), "no such file"),
+        (lambda d: ("convert", d / "empty.stl", d / "o.step"), "empty"),
+        (lambda d: ("convert", d / "cube.stl", d / "o.iges"), "unknown extension"),
+        (lambda d: ("convert", d / "cube.stl", d / "o.step", "--tolerance", "-1"), "--tolerance"),
+        (lambda d: ("convert", d / "cube.stl", d / "nofolder" / "o.step"), "does not exist"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path, make_args, message):
+    (tmp_path / "empty.stl").write_bytes(b"")
+    trimesh.creation.box().export(tmp_path / "cube.stl")
+    before = set(tmp_path.iterdir())
+    proc = _recon(*make_args(tmp_path), cwd=tmp_path)
+    assert proc.returncode == 2
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("recon convert: error:") and message in err[0], proc.stderr
+    assert set(tmp_path.iterdir()) == before
