@@ -2,8 +2,10 @@
 
 Steps, each a vectorised pass over the mesh:
 
-1. Feature measure (:mod:`recon.features`) → smooth triangles; their edge-connected components large
-   enough to carry a face are the smooth *patches*; the rest is the *critical region*.
+1. Feature measure (:mod:`recon.features`) → smooth triangles, whose components seed the *patches*; their
+   extent is decided by fitting (:mod:`._regions`): a patch is what one analytic surface covers within
+   tolerance, grown back into the critical region and split where one surface does not fit. Curved regions
+   tangent to two or more neighbours are blends and stay in the *critical region* with what no patch covers.
 2. The patches' boundary loops are the boundary curves ``C_i`` of §2; the curve potential ``φ`` is the
    arc length along each loop.
 3. Every critical vertex gets its nearest patch-boundary vertex (multi-source Dijkstra on the mesh
@@ -31,6 +33,7 @@ from ..errors import DecompositionError, InputError
 from ..features import FeatureField, feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
+from ._regions import Regions, fitted_regions
 from ._topology import Topology, topology
 from ._types import Decomposition, Part, SurfaceSkeleton
 
@@ -41,8 +44,11 @@ log = logging.getLogger(__name__)
 #: Feature-measure threshold between smooth and critical: a normal variance of 0.02 is a spread of
 #: about 8° in the window — a cylinder of radius about 7 windows is still smooth.
 DEFAULT_THRESHOLD = 0.02
-#: Smallest patch, in squared scales: a patch must hold a few windows to carry a face of its own.
-MIN_PATCH_WINDOWS = 12.0
+#: Smallest patch, as a share of the bounding-box diagonal (squared): a property of the part, not the mesh.
+MIN_PATCH_DIAGONAL = 0.03
+#: Normal tolerance in median normal deviations of the smooth triangles (noise), and its floor in degrees.
+ANGLE_NOISE_FACTOR = 3.0
+MIN_ANGLE_DEG = 12.0
 #: A part is sharp when less than this share of its area has normals in the middle half of its normal
 #: range: across a blend the normal turns evenly (share ≈ 0.5), across a sharp edge it jumps (share ≈ 0).
 SHARP_MIDDLE_SHARE = 0.2
@@ -57,6 +63,7 @@ def decompose(
     omega_min: float | None = None,
     threshold: float | None = None,
     min_patch_area: float | None = None,
+    tolerance: float | None = None,
     features: FeatureField | None = None,
     progress: Callable[[str, float], None] | None = None,
 ) -> Decomposition:
@@ -74,7 +81,10 @@ def decompose(
     threshold : float, optional
         Feature-measure threshold between smooth and critical (default :data:`DEFAULT_THRESHOLD`).
     min_patch_area : float, optional
-        Smooth regions smaller than this join the critical region (default ``12 · scale²``).
+        Fitted regions smaller than this join the critical region (default :func:`default_min_area`).
+    tolerance : float, optional
+        Distance within which a triangle lies on a patch's fitted surface (default ``max(4 σ, 1e-4 · diagonal)``
+        with σ the estimated noise, the rule of :func:`recon.fit.default_tolerance`).
     features : FeatureField, optional
         A precomputed feature field (then ``scale`` is ignored).
     progress : callable(stage: str, fraction: float), optional
@@ -100,10 +110,17 @@ def decompose(
 
     # -- 1. smooth patches ------------------------------------------------------------------------------
     step("patches", 0.2)
-    smooth = ff.face_measure(F) < threshold
+    fmeasure = ff.face_measure(F)
+    smooth = fmeasure < threshold
     pairs = _face_pairs(topo)
-    min_area = MIN_PATCH_WINDOWS * s * s if min_patch_area is None else float(min_patch_area)
-    patch = _patches(m, pairs, smooth, area, min_area)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    min_area = default_min_area(diag, s) if min_patch_area is None else float(min_patch_area)
+    regions = fitted_regions(
+        V, F, adj=np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(m, 3), pairs=pairs, edges=topo.edges,
+        smooth=smooth, priority=fmeasure, vnormal=ff.normals, area=area, tolerance=tolerance, noise=ff.noise,
+        angle=_normal_angle(V, F, ff, smooth), min_area=min_area, diag=diag,
+    )
+    patch = _patch_ids(regions, area)
     n_patch = int(patch.max()) + 1 if (patch >= 0).any() else 0
     critical = patch < 0
     log.info("%d patches, %d of %d triangles critical", n_patch, int(critical.sum()), m)
@@ -206,27 +223,37 @@ def decompose(
 # -- helpers ------------------------------------------------------------------------------------------------
 
 
+def default_min_area(diagonal: float, scale: float) -> float:
+    """Smallest patch area: ``(0.03 · diagonal)²``, and at least a smoothing window (``scale²``)."""
+    return max((MIN_PATCH_DIAGONAL * diagonal) ** 2, scale * scale)
+
+
+def _normal_angle(V, F, ff: FeatureField, smooth) -> float:
+    """Normal tolerance (radians): 3 × the median angle between smooth triangles' normals and the smoothed ones."""
+    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    fn = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
+    sn = ff.normals[F].sum(axis=1)
+    sn /= np.maximum(np.linalg.norm(sn, axis=1, keepdims=True), 1e-300)
+    cos = np.clip(np.abs(np.einsum("ij,ij->i", fn, sn)), 0.0, 1.0)
+    med = float(np.median(np.arccos(cos[smooth]))) if smooth.any() else 0.0
+    return max(np.deg2rad(MIN_ANGLE_DEG), ANGLE_NOISE_FACTOR * med)
+
+
+def _patch_ids(regions: Regions, area) -> np.ndarray:
+    """(m,) int: patch id per triangle (−1 critical): the non-blend regions, numbered by decreasing area."""
+    lab = regions.label
+    keep = np.flatnonzero(~regions.blend)
+    ra = np.bincount(lab[lab >= 0], weights=area[lab >= 0], minlength=len(regions.fits))
+    keep = keep[np.argsort(-ra[keep], kind="stable")]
+    lut = np.full(len(regions.fits) + 1, -1, np.int64)
+    lut[keep] = np.arange(len(keep))
+    return lut[lab]
+
+
 def _face_pairs(topo: Topology) -> np.ndarray:
     """(p, 3) int: adjacent triangles (f, g) with f < g across undirected edge e, as rows (f, g, e)."""
     h = np.flatnonzero(topo.twin > np.arange(len(topo.twin)))
     return np.stack([h // 3, topo.twin[h] // 3, topo.half_edge[h]], axis=1)
-
-
-def _patches(m, pairs, smooth, area, min_area) -> np.ndarray:
-    """(m,) int: patch id per triangle (−1 critical), patches numbered by decreasing area."""
-    keep = smooth[pairs[:, 0]] & smooth[pairs[:, 1]]
-    p = pairs[keep]
-    g = sp.coo_matrix((np.ones(len(p), np.int8), (p[:, 0], p[:, 1])), shape=(m, m))
-    _, comp = connected_components(g, directed=False)
-    comp_area = np.bincount(comp, weights=area * smooth)
-    ok = (comp_area >= min_area) & (comp_area > 0)
-    ids = np.flatnonzero(ok)
-    ids = ids[np.argsort(-comp_area[ids], kind="stable")]
-    lut = np.full(len(comp_area), -1, np.int64)
-    lut[ids] = np.arange(len(ids))
-    patch = lut[comp]
-    patch[~smooth] = -1
-    return patch
 
 
 def _edge_graph(V, topo: Topology, critical, n) -> sp.csr_matrix:

@@ -1,0 +1,487 @@
+"""Smooth patches by fitting: which triangles one analytic surface covers within tolerance.
+
+The feature measure only *seeds* the patches. What decides their extent is geometry at the part's own scale,
+not the triangle size:
+
+1. every smooth component of the feature measure is fitted (plane < sphere < cylinder < cone < torus, the
+   simplest type within tolerance, :mod:`recon.fit`); a component no single surface covers (two faces joined
+   through a blend the measure saw as smooth) is split by region growing from its flattest triangles, each
+   region growing while its triangles stay on its surface (§ "fit consistency");
+2. all regions then grow into the critical region at once, a triangle going to the neighbouring region it
+   fits best (vertex distance within tolerance, normal within the noise's angle) — this puts the boundary
+   where the surface actually ends instead of a few smoothing windows short of it;
+3. what is still unclaimed is searched for the blend surfaces (fillet cylinders, corner spheres, tori) the
+   same way, and triangles on the borders between regions move to the neighbour whose surface is closer;
+4. a curved region tangent to two or more neighbours is a *blend*: it goes back to the critical region, whose
+   skeleton (§2–3) makes it a linear part or a junction. A curved region meeting its neighbours at sharp
+   edges (a through hole, a boss) is a primary face and stays a patch.
+
+Tolerances: ``tolerance`` is a distance (default ``max(4 σ, 1e-4 · diagonal)``, the fit module's rule);
+``angle`` the largest normal deviation a triangle of the surface shows under the noise.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import FitError
+from ..fit import SurfaceFit
+from ..fit._select import ANALYTIC_FITTERS
+
+__all__ = ["Regions", "fitted_regions"]
+
+log = logging.getLogger(__name__)
+
+#: Fewest distinct vertices a seed must hold before it is fitted.
+SEED_VERTICES = 16
+#: Fewest vertices a region needs to count (a fit on fewer is not evidence of a surface).
+MIN_REGION_VERTICES = 12
+#: A region is refitted each time it has grown by this factor.
+REFIT_GROWTH = 1.6
+#: Two surfaces meeting at less than this angle (degrees) along their shared border are tangent (a blend).
+TANGENT_DEG = 20.0
+#: Share of a component that split regions must cover for the split to be kept (else: one free-form patch).
+MIN_SPLIT_COVER = 0.5
+#: Surface types of blends (a planar chamfer stays in the critical region unless its own smooth component fits).
+CURVED = ("sphere", "cylinder")
+#: Distance tolerance of the patches' first growth into the critical region, in tolerances (4σ → 1.5σ).
+STRICT = 0.375
+#: Border refinement passes.
+REFINE_PASSES = 4
+
+
+@dataclass(frozen=True)
+class Regions:
+    """Triangles covered by fitted surfaces.
+
+    Attributes
+    ----------
+    label : (m,) int
+        Region of each triangle, −1 where no region claims it.
+    fits : tuple of SurfaceFit
+        Surface of each region (``type == "free"`` with empty params for an unfittable smooth component).
+    blend : (k,) bool
+        The region is a blend (curved and tangent to two or more neighbours).
+    tolerance : float
+    angle : float
+        Normal tolerance in radians.
+    """
+
+    label: np.ndarray
+    fits: tuple
+    blend: np.ndarray
+    tolerance: float
+    angle: float
+
+
+class _Ctx:
+    """Mesh arrays shared by the growing steps."""
+
+    def __init__(self, V, F, adj, pairs, edges, fnormal, vnormal, tol, angle, diag):
+        self.V, self.F, self.adj, self.pairs, self.edges = V, F, adj, pairs, edges
+        self.fn, self.vn = fnormal, vnormal
+        self.tol, self.cos = tol, float(np.cos(angle))
+        self.eps = 1e-5 * diag
+        self.centroid = V[F].mean(axis=1)
+
+
+def _quick_reject(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> bool:
+    """True when the closed-form start of a sphere / cylinder fit is already far off (saves the refinement).
+
+    Sphere: the linear fit ``|p|² = 2 c·p + k``; cylinder: the axis least orthogonal to the normals and a
+    linear circle fit across it. A seed straddling a sharp edge fails these by many tolerances.
+    """
+    q = pts - pts.mean(axis=0)
+    if kind == "sphere":
+        a = np.c_[2 * q, np.ones(len(q))]
+        sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
+        c, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
+        res = np.linalg.norm(q - c, axis=1) - np.sqrt(max(r2, 0.0))
+    elif kind == "cylinder":
+        axis = np.linalg.eigh(nrm.T @ nrm)[1][:, 0]
+        e1 = np.cross(axis, np.eye(3)[np.argmin(np.abs(axis))])
+        e1 /= np.linalg.norm(e1)
+        xy = np.c_[q @ e1, q @ np.cross(axis, e1)]
+        a = np.c_[2 * xy, np.ones(len(xy))]
+        sol = np.linalg.lstsq(a, (xy * xy).sum(axis=1), rcond=None)[0]
+        res = np.linalg.norm(xy - sol[:2], axis=1) - np.sqrt(max(sol[2] + sol[:2] @ sol[:2], 0.0))
+    else:
+        return False
+    return bool(np.percentile(np.abs(res), 90) > 3.0 * tol)
+
+
+def _fit(ctx: _Ctx, faces: np.ndarray, types=tuple(ANALYTIC_FITTERS), *, quick: bool = False) -> SurfaceFit | None:
+    """Simplest analytic surface through the vertices of ``faces`` within tolerance, or None.
+
+    ``quick``: skip types whose closed-form start is far off (for the many small seed discs).
+    """
+    verts = np.unique(ctx.F[faces])
+    if len(verts) < MIN_REGION_VERTICES:
+        return None
+    pts, nrm = ctx.V[verts], ctx.vn[verts]
+    for kind in ANALYTIC_FITTERS:
+        if kind not in types:
+            continue
+        if quick and _quick_reject(kind, pts, nrm, ctx.tol):
+            continue
+        try:
+            fit = ANALYTIC_FITTERS[kind](pts, nrm, tolerance=ctx.tol)
+        except (FitError, np.linalg.LinAlgError, ValueError):
+            continue
+        if fit:
+            return fit
+    return None
+
+
+def _normals_at(fit: SurfaceFit, pts: np.ndarray, eps: float) -> np.ndarray:
+    """(n, 3) unit normals of the fitted surface at (near) ``pts``: gradient of its signed distance."""
+    if fit.type == "plane":
+        return np.broadcast_to(np.asarray(fit.params["normal"], float), pts.shape)
+    g = np.empty_like(pts)
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = eps
+        g[:, k] = fit.distance(pts + d) - fit.distance(pts - d)
+    return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+
+
+def _error(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray, *, strict: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per face: RMS vertex distance to ``fit`` in tolerances, and whether the face is accepted.
+
+    ``strict`` < 1 shrinks the distance tolerance (the first, cautious growth of the patches).
+    """
+    d = np.abs(fit.distance(ctx.V[ctx.F[faces]].reshape(-1, 3))).reshape(-1, 3)
+    n = _normals_at(fit, ctx.centroid[faces], ctx.eps)
+    cos = np.abs(np.einsum("ij,ij->i", n, ctx.fn[faces]))
+    ok = (d.max(axis=1) <= strict * ctx.tol) & (cos >= ctx.cos)
+    err = np.sqrt((d * d).mean(axis=1)) / ctx.tol + (1.0 - cos) / max(1.0 - ctx.cos, 1e-12)
+    return err, ok
+
+
+def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> float:
+    """``max(4 σ, 1e-4 · diag)`` with σ the robust spread of the vertices about the largest smooth components' fits.
+
+    The residual of a fitted face is the noise and nothing else; local estimators (smoothing, k-NN quadrics)
+    also see the features and the tessellation when the triangles are large compared with the features.
+    """
+    floor = 1e-4 * diag
+    ctx.tol = max(4.0 * noise, floor)
+    res = []
+    total = sum(len(f) for f in comp_faces)
+    used = 0
+    for faces in comp_faces[:8]:
+        fit = _fit(ctx, faces)
+        if fit is not None:
+            res.append(fit.distance(ctx.V[np.unique(ctx.F[faces])]))
+        used += len(faces)
+        if used > 0.5 * total and res:
+            break
+    if not res:
+        return ctx.tol
+    r = np.concatenate(res)
+    sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    log.info("noise from fitted faces: sigma %.4g (first estimate %.4g)", sigma, noise)
+    return max(4.0 * sigma, floor)
+
+
+def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray):
+    """Grow one region ring by ring over ``allowed`` triangles that stay on its surface; refit as it grows."""
+    inreg = np.zeros(len(ctx.F), bool)
+    inreg[faces] = True
+    frontier = faces
+    fitted_size = len(faces)
+    while len(frontier):
+        nb = ctx.adj[frontier].ravel()
+        nb = np.unique(nb[nb >= 0])
+        nb = nb[allowed[nb] & ~inreg[nb]]
+        if len(nb):
+            _, ok = _error(ctx, fit, nb)
+            nb = nb[ok]
+        inreg[nb] = True
+        frontier = nb
+        size = int(inreg.sum())
+        if size >= REFIT_GROWTH * fitted_size or not len(frontier):
+            if size == fitted_size:
+                break
+            region = np.flatnonzero(inreg)
+            new = _fit(ctx, region, (fit.type,)) or _fit(ctx, region)
+            fitted_size = size
+            if new is not None:
+                fit = new
+                frontier = region  # the new surface may accept triangles the old one refused
+    return np.flatnonzero(inreg), fit
+
+
+def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=tuple(ANALYTIC_FITTERS)):
+    """Regions grown from seeds inside ``allowed``, flattest seed first. Returns a list of (faces, fit)."""
+    m = len(ctx.F)
+    free = allowed.copy()
+    tried = ~allowed
+    out = []
+    order = np.argsort(priority, kind="stable")
+    order = order[allowed[order]]
+    pos = 0
+    while pos < len(order):
+        seed = order[pos]
+        pos += 1
+        if tried[seed] or not free[seed]:
+            continue
+        # the seed disc: breadth-first rings over free triangles until it holds enough vertices
+        core = np.array([seed])
+        incore = np.zeros(m, bool)
+        incore[seed] = True
+        while len(np.unique(ctx.F[core])) < SEED_VERTICES:
+            nb = ctx.adj[core].ravel()
+            nb = np.unique(nb[nb >= 0])
+            nb = nb[free[nb] & ~incore[nb]]
+            if not len(nb):
+                break
+            incore[nb] = True
+            core = np.flatnonzero(incore)
+        tried[core] = True  # a failed seed is not retried from inside its own disc (nor right next to it)
+        nb = ctx.adj[core].ravel()
+        tried[nb[nb >= 0]] = True
+        if "plane" not in types and _fit(ctx, core, ("plane",)) is not None:
+            continue  # flat: not the curved surface looked for (a huge radius would fit it too)
+        fit = _fit(ctx, core, types, quick=True)
+        if fit is None:
+            continue
+        faces, fit = _grow_one(ctx, core, fit, free)
+        if area[faces].sum() < min_area:
+            continue
+        free[faces] = False
+        tried[faces] = True
+        out.append((faces, fit))
+    return out
+
+
+def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, strict: float = 1.0) -> np.ndarray:
+    """Grow all regions at once over ``allowed`` unlabelled triangles (each to the best-fitting neighbour).
+
+    With ``swap``, labelled border triangles also move to a neighbouring region whose surface fits them better.
+    """
+    label = label.copy()
+    f, g = ctx.pairs[:, 0], ctx.pairs[:, 1]
+    for _ in range(10000):
+        lf, lg = label[f], label[g]
+        if swap:
+            sel = (lf != lg) & (lf >= 0) & (lg >= 0)
+            cand = np.concatenate([g[sel], f[sel]])
+            creg = np.concatenate([lf[sel], lg[sel]])
+        else:
+            a = (lf >= 0) & (lg < 0) & allowed[g]
+            b = (lg >= 0) & (lf < 0) & allowed[f]
+            cand = np.concatenate([g[a], f[b]])
+            creg = np.concatenate([lf[a], lg[b]])
+        if not len(cand):
+            break
+        key = np.unique(cand * np.int64(len(fits) + 1) + creg)
+        cand, creg = key // (len(fits) + 1), key % (len(fits) + 1)
+        err = np.full(len(cand), np.inf)
+        for r in np.unique(creg):
+            if fits[r].type == "free":
+                continue
+            sel = creg == r
+            e, ok = _error(ctx, fits[r], cand[sel], strict=strict)
+            err[sel] = np.where(ok, e, np.inf)
+        if swap:
+            own = np.full(len(cand), np.inf)
+            cur = label[cand]
+            for r in np.unique(cur):
+                if fits[r].type == "free":
+                    own[cur == r] = -np.inf  # free-form patches keep their triangles
+                    continue
+                sel = cur == r
+                own[sel] = _error(ctx, fits[r], cand[sel])[0]
+            err = np.where(err < 0.8 * own, err, np.inf)  # a clear improvement only: no flip-flopping
+        good = np.isfinite(err)
+        if not good.any():
+            break
+        cand, creg, err = cand[good], creg[good], err[good]
+        o = np.lexsort((err, cand))
+        first = np.r_[True, cand[o][1:] != cand[o][:-1]]
+        label[cand[o][first]] = creg[o][first]
+        if swap:
+            break  # one pass; the caller refits between passes
+    return label
+
+
+def _refit(ctx: _Ctx, label: np.ndarray, fits: list) -> list:
+    out = list(fits)
+    for r, fit in enumerate(fits):
+        if fit.type == "free":
+            continue
+        faces = np.flatnonzero(label == r)
+        if len(faces):
+            new = _fit(ctx, faces, (fit.type,))
+            if new is not None:
+                out[r] = new
+    return out
+
+
+def _merge(ctx: _Ctx, label: np.ndarray, fits: list):
+    """Merge neighbouring regions of one type whose union one surface of that type still fits."""
+    fits = list(fits)
+    tried = set()
+    while True:
+        f, g = ctx.pairs[:, 0], ctx.pairs[:, 1]
+        lf, lg = label[f], label[g]
+        sel = (lf >= 0) & (lg >= 0) & (lf != lg)
+        a, b = np.minimum(lf[sel], lg[sel]), np.maximum(lf[sel], lg[sel])
+        key, cnt = np.unique(a * np.int64(len(fits)) + b, return_counts=True)
+        merged = False
+        for kk in key[np.argsort(-cnt, kind="stable")]:
+            ra, rb = int(kk // len(fits)), int(kk % len(fits))
+            if (ra, rb) in tried or fits[ra].type != fits[rb].type or fits[ra].type == "free":
+                continue
+            tried.add((ra, rb))
+            union = np.flatnonzero((label == ra) | (label == rb))
+            fit = _fit(ctx, union, (fits[ra].type,))
+            if fit is not None:
+                label[label == rb] = ra
+                fits[ra] = fit
+                merged = True
+                break
+        if not merged:
+            return label, fits
+
+
+def _blends(ctx: _Ctx, label: np.ndarray, fits: list) -> np.ndarray:
+    """Curved regions whose surface is tangent to that of two or more neighbouring regions."""
+    k = len(fits)
+    f, g, e = ctx.pairs[:, 0], ctx.pairs[:, 1], ctx.pairs[:, 2]
+    lf, lg = label[f], label[g]
+    sel = (lf >= 0) & (lg >= 0) & (lf != lg)
+    lf, lg, e = lf[sel], lg[sel], e[sel]
+    mid = 0.5 * (ctx.V[ctx.edges[e, 0]] + ctx.V[ctx.edges[e, 1]])
+    tangent = np.zeros((k, k), bool)
+    lo, hi = np.minimum(lf, lg), np.maximum(lf, lg)
+    key = lo * np.int64(k) + hi
+    for kk in np.unique(key):
+        a, b = int(kk // k), int(kk % k)
+        if fits[a].type == "free" or fits[b].type == "free":
+            continue
+        s = key == kk
+        na = _normals_at(fits[a], mid[s], ctx.eps)
+        nb = _normals_at(fits[b], mid[s], ctx.eps)
+        ang = np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", na, nb)), 0, 1)))
+        if np.median(ang) < TANGENT_DEG:
+            tangent[a, b] = tangent[b, a] = True
+    curved = np.array([fit.type not in ("plane", "free") for fit in fits], bool)
+    return curved & (tangent.sum(axis=1) >= 2)
+
+
+def fitted_regions(
+    V, F, *, adj, pairs, edges, smooth, priority, vnormal, area, tolerance, noise, angle, min_area, diag
+) -> Regions:
+    """Patches as regions of fitted surfaces (see the module notes).
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    adj : (m, 3) int
+        Neighbouring triangle across each edge, −1 on a border.
+    pairs : (p, 3) int
+        Adjacent triangles (f, g, undirected edge).
+    edges : (E, 2) int
+    smooth : (m,) bool
+        Triangles the feature measure calls smooth.
+    priority : (m,) float
+        Seed order (lowest first): the feature measure.
+    vnormal : (n, 3) float
+        Unit vertex normals for the fitters.
+    area : (m,) float
+    tolerance : float or None
+        Distance tolerance; None: ``max(4 σ, 1e-4 · diag)`` with σ measured on the fitted smooth components.
+    noise : float
+        A first noise estimate (used to fit the components that measure σ).
+    angle, min_area, diag : float
+    """
+    m = len(F)
+    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    fn = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
+    ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag)
+    label = np.full(m, -1, np.int64)
+    fits: list = []
+
+    # 1. smooth components: one surface each, or split by fit-consistent growing
+    keep = smooth[pairs[:, 0]] & smooth[pairs[:, 1]]
+    p = pairs[keep]
+    gph = sp.coo_matrix((np.ones(len(p), np.int8), (p[:, 0], p[:, 1])), shape=(m, m))
+    _, comp = connected_components(gph, directed=False)
+    comp_area = np.bincount(comp, weights=area * smooth, minlength=m)
+    order = [c for c in np.argsort(-comp_area, kind="stable") if comp_area[c] >= min_area]
+    comp_faces = [np.flatnonzero((comp == c) & smooth) for c in order]
+    if tolerance is None:
+        tolerance = _noise_tolerance(ctx, comp_faces, noise, diag)
+        ctx.tol = tolerance
+    for c, faces in zip(order, comp_faces):
+        fit = _fit(ctx, faces)
+        if fit is not None:
+            label[faces] = len(fits)
+            fits.append(fit)
+            continue
+        allowed = np.zeros(m, bool)
+        allowed[faces] = True
+        allowed &= label < 0
+        found = _seed_regions(ctx, allowed, priority, min_area, area)
+        covered = sum(area[f].sum() for f, _ in found)
+        if covered < MIN_SPLIT_COVER * comp_area[c]:
+            # no analytic surface explains most of it: a free-form face (a loft), kept whole
+            label[faces] = len(fits)
+            fits.append(SurfaceFit("free", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(faces)))
+            log.info("smooth component of %.4g area fits no analytic surface: kept as a free-form patch", comp_area[c])
+            continue
+        for f_, fit_ in found:
+            label[f_] = len(fits)
+            fits.append(fit_)
+    log.debug("regions from smooth components: %d", len(fits))
+
+    # 2. the blends: curved surfaces inside the critical region, found before the patches grow far into it so
+    #    that the border between a face and its fillet is decided by comparing the two surfaces. The patches
+    #    first take what lies on them well within the noise (a fillet is tangent to its faces: within the full
+    #    tolerance they would reach far into it and leave the fillet too narrow to be found)
+    label = _compete(ctx, label, fits, np.ones(m, bool), strict=STRICT)
+    found = _seed_regions(ctx, label < 0, priority, min_area, area, types=CURVED)
+    for f_, fit_ in found:
+        label[f_] = len(fits)
+        fits.append(fit_)
+    #    then flat areas the smoothing window called critical (a face narrower than the window, a chamfer)
+    found = _seed_regions(ctx, label < 0, priority, min_area, area, types=("plane",))
+    for f_, fit_ in found:
+        label[f_] = len(fits)
+        fits.append(fit_)
+
+    # 3. grow every region over what is left, each triangle to the neighbour that fits it best; then move
+    #    border triangles to the neighbour whose surface is clearly closer, refitting in between
+    everywhere = np.ones(m, bool)
+    label = _compete(ctx, label, fits, everywhere)
+    for _ in range(REFINE_PASSES):
+        fits = _refit(ctx, label, fits)
+        new = _compete(ctx, label, fits, everywhere, swap=True)
+        new = _compete(ctx, new, fits, everywhere)
+        if (new == label).all():
+            break
+        label = new
+
+    label, fits = _merge(ctx, label, fits)
+
+    # 4. drop what became too small, renumber, find the blends
+    ra = np.bincount(label[label >= 0], weights=area[label >= 0], minlength=len(fits))
+    alive = np.flatnonzero(ra >= min_area)
+    lut = np.full(len(fits) + 1, -1, np.int64)
+    lut[alive] = np.arange(len(alive))
+    label = lut[label]  # −1 maps through the last slot
+    fits = [fits[i] for i in alive]
+    blend = _blends(ctx, label, fits) if fits else np.zeros(0, bool)
+    log.info(
+        "%d fitted regions (%s), %d blends, %d of %d triangles unclaimed",
+        len(fits), ", ".join(sorted({f.type for f in fits})), int(blend.sum()), int((label < 0).sum()), m,
+    )
+    return Regions(label=label, fits=tuple(fits), blend=blend, tolerance=float(tolerance), angle=float(angle))
