@@ -4,6 +4,7 @@ The public API is declared here once; implementation modules are private.
 """
 
 from .curves import CurveNetwork, curve_network
+from .decompose import Decomposition, decompose, face_recovery
 from .deviation import DeviationReport, DeviationStats, FaceDeviation, deviation, plot_deviation
 from .errors import BrepError, DecompositionError, ExportError, FitError, InputError, MeshError, ReconError
 from .fit import CurveFit, SurfaceFit, fit_curve, fit_surface, noise_sigma
@@ -34,7 +35,10 @@ __all__ = [
     "convert",
     "CurveFit",
     "CurveNetwork",
+    "Decomposition",
     "DecompositionError",
+    "decompose",
+    "face_recovery",
     "DeviationReport",
     "DeviationStats",
     "ExportError",
