@@ -111,7 +111,7 @@ def test_traced_curves_pass_full_validation_even_on_salt_and_pepper(seed):
 
 @pytest.mark.parametrize(
     "mode",
-    ["L01", "L255", "P01", "RGB", "RGBA_alpha", "1"],
+    ["L01", "L255", "P01", "RGB", "RGBA_alpha", "1", "CMYK_tif", "LA_alpha"],
 )
 def test_image_encodings_give_the_same_shape(tmp_path, mode):
     mask = np.zeros((24, 32), bool)
@@ -133,6 +133,14 @@ def test_image_encodings_give_the_same_shape(tmp_path, mode):
         rgba = np.zeros((*mask.shape, 4), np.uint8)
         rgba[..., 3] = mask * 255
         Image.fromarray(rgba).save(f)
+    elif mode == "CMYK_tif":
+        f = tmp_path / "m.tif"
+        rgb = np.where(mask[..., None], [255, 255, 255], [0, 0, 0]).astype(np.uint8)
+        Image.fromarray(rgb).convert("CMYK").save(f)
+    elif mode == "LA_alpha":
+        la = np.zeros((*mask.shape, 2), np.uint8)
+        la[..., 1] = mask * 255
+        Image.fromarray(la, mode="LA").save(f)
     else:
         Image.fromarray(mask).convert("1").save(f)
     shape = load_shape(f)

@@ -209,6 +209,8 @@ def _raster_mask(path: Path) -> np.ndarray:
                 im = im.convert("RGBA" if "transparency" in im.info else "RGB")
             elif im.mode in ("LA", "PA"):
                 im = im.convert("RGBA")
+            elif im.mode not in ("1", "L", "I", "I;16", "F", "RGB", "RGBA"):  # CMYK, YCbCr, HSV, ...
+                im = im.convert("RGB")
             arr = np.asarray(im)
             mode = im.mode
     except (OSError, UnidentifiedImageError, ValueError) as err:
