@@ -35,10 +35,10 @@ from OCP.GProp import GProp_GProps
 from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 from OCP.ShapeAnalysis import ShapeAnalysis_FreeBounds
 from OCP.ShapeBuild import ShapeBuild_ReShape
-from OCP.ShapeFix import ShapeFix_Face, ShapeFix_Shell, ShapeFix_Solid
+from OCP.ShapeFix import ShapeFix_Edge, ShapeFix_Face, ShapeFix_Shell, ShapeFix_Solid
 from OCP.TColgp import TColgp_Array1OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
-from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
+from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID, TopAbs_VERTEX, TopAbs_WIRE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shell
 
@@ -275,8 +275,60 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
     if not area > 0:
         raise BrepError(f"face on its surface has area {area:.4g}")
     if not BRepCheck_Analyzer(face).IsValid():
-        raise BrepError("face on its surface is not valid (BRepCheck_Analyzer)")
+        _fix_edges(face)
+        problems = face_problems(face)
+        if problems:
+            raise BrepError(f"face on its surface is not valid ({problems})")
     return (TopoDS.Face_s(face.Reversed()) if vote < 0 else face), area
+
+
+def _fix_edges(face) -> None:
+    """Make every edge of ``face`` same-parameter with a tolerance that covers its measured gap.
+
+    The network's edges lie on a fitted surface only within the fit's residual, and the pieces of an edge
+    that ShapeFix split at a seam lose their same-range flag; ``ShapeFix_Edge`` re-projects the p-curve,
+    measures the 3D/2D deviation and raises the edge (and vertex) tolerance to it.
+    """
+    sfe = ShapeFix_Edge()
+    exp = TopExp_Explorer(face, TopAbs_EDGE)
+    while exp.More():
+        edge = TopoDS.Edge_s(exp.Current())
+        sfe.FixSameParameter(edge, face)
+        sfe.FixVertexTolerance(edge, face)
+        exp.Next()
+
+
+def face_problems(face) -> str:
+    """``BRepCheck_Analyzer``'s complaints about ``face`` and its wires, edges and vertices, counted; "" if valid."""
+    analyzer = BRepCheck_Analyzer(face)
+    if analyzer.IsValid():
+        return ""
+    counts: dict[str, int] = {}
+
+    def note(result):
+        if result is None:
+            return
+        try:
+            items = [result.Status()]
+            result.InitContextIterator()
+            while result.MoreShapeInContext():
+                items.append(result.StatusOnShape())
+                result.NextShapeInContext()
+        except Exception:  # noqa: BLE001  (the list wrapper differs between OCP builds)
+            return
+        for lst in items:
+            for st in lst:
+                name = str(st).rsplit(".", 1)[-1].replace("BRepCheck_", "")
+                if name != "NoError":
+                    counts[name] = counts.get(name, 0) + 1
+
+    note(analyzer.Result(face))
+    for kind in (TopAbs_WIRE, TopAbs_EDGE, TopAbs_VERTEX):
+        exp = TopExp_Explorer(face, kind)
+        while exp.More():
+            note(analyzer.Result(exp.Current()))
+            exp.Next()
+    return "BRepCheck: " + (", ".join(f"{k} ×{v}" for k, v in sorted(counts.items())) or "invalid")
 
 
 def _filled_face(loops: list[np.ndarray], edges, points):
