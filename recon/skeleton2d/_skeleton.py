@@ -32,6 +32,7 @@ import logging
 from collections.abc import Sequence
 
 import numpy as np
+import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import Delaunay, QhullError
@@ -224,10 +225,12 @@ def _omega(a: np.ndarray, b: np.ndarray, curve: np.ndarray, potential: np.ndarra
 class _Triangulation:
     """A conforming Delaunay triangulation of the samples, its inside triangles and §2's Voronoi edges.
 
-    Boundary edges missing from the triangulation get their midpoint inserted, and so do boundary edges
-    encroached in an inside triangle that carries a kept Voronoi edge (its circumcentre, a skeleton vertex,
-    would lie beyond that edge, outside the shape). Encroachment elsewhere does not matter: those
-    circumcentres are pruned. Up to ``MAX_REFINE_ROUNDS`` rounds.
+    Boundary edges missing from the triangulation are split in four; boundary edges encroached in an inside
+    triangle that carries a kept Voronoi edge (its circumcentre, a skeleton vertex, would lie beyond that
+    edge, outside the shape) are split in two, and so are the encroached edges that hide another kept
+    triangle's circumcentre from it (Ruppert's lemma: a circumcentre outside lies beyond an encroached
+    boundary edge). Encroachment elsewhere does not matter: those circumcentres are pruned. Refining every
+    encroached edge would cascade at every acute corner. Up to ``MAX_REFINE_ROUNDS`` rounds.
     """
 
     def __init__(self, points, curve, potential, curve_length, omega_min):
@@ -240,7 +243,8 @@ class _Triangulation:
             is_bnd = fwd | bwd
             hits = np.bincount(np.where(fwd, a, b)[is_bnd], minlength=len(points))
             split = np.flatnonzero(hits == 0)
-            if len(split) == 0:
+            conforming = len(split) == 0
+            if conforming:
                 inside = _inside(simp, nb, is_bnd)
                 pairs, corner = sg.cell_adjacency(nb, active=inside)
                 s0 = simp[pairs[:, 0], (corner + 1) % 3]
@@ -249,6 +253,8 @@ class _Triangulation:
                 carries = np.zeros(len(simp), dtype=bool)
                 carries[pairs[kept].ravel()] = True
                 split = _encroached(points, simp, a, b, fwd, is_bnd & carries[:, None])
+                if len(split) == 0:
+                    split = _hiding_edges(points, curve, simp, a, b, fwd, is_bnd & inside[:, None], carries)
                 if len(split) == 0 or rounds == MAX_REFINE_ROUNDS:
                     break
             elif rounds == MAX_REFINE_ROUNDS:
@@ -256,8 +262,11 @@ class _Triangulation:
                 raise DecompositionError(
                     f"shape: {len(split)} boundary edges cannot be made Delaunay edges (do curves touch or cross near "
                     f"({where[0]:.6g}, {where[1]:.6g})?)")
-            points, curve, potential = _insert_midpoints(points, curve, potential, curve_length, nxt, split)
-            self.inserted += len(split)
+            n_before = len(points)
+            # missing edges are quartered: the gap to the intruding sample is often far below the spacing
+            fractions = (0.5,) if conforming else (0.25, 0.5, 0.75)
+            points, curve, potential = _insert_midpoints(points, curve, potential, curve_length, nxt, split, fractions)
+            self.inserted += len(points) - n_before
         self.rounds = rounds
         self.points, self.curve, self.potential = points, curve, potential
         self.simplices, self.neighbors, self.inside, self.next = simp, nb, inside, nxt
@@ -323,8 +332,11 @@ def _inside(simp: np.ndarray, nb: np.ndarray, is_bnd: np.ndarray) -> np.ndarray:
     return parity[comp] == 1
 
 
-def _encroached(points, simp, a, b, fwd, check) -> np.ndarray:
-    """Boundary edges (by start sample) among ``check (m, 3) bool`` whose opposite angle is not acute."""
+def _encroached(points, simp, a, b, fwd, check, *, edges=False):
+    """Boundary edges (by start sample) among ``check (m, 3) bool`` whose opposite angle is not acute.
+
+    With ``edges=True`` also returns each such edge's two end points, ``(e, 2, 2) float``.
+    """
     t, k = np.nonzero(check)
     apex = points[simp[t, k]]
     pa, pb = points[a[t, k]] - apex, points[b[t, k]] - apex
@@ -332,17 +344,55 @@ def _encroached(points, simp, a, b, fwd, check) -> np.ndarray:
     # a right angle puts the circumcentre on the edge itself: split that too, so skeleton vertices are strictly inside
     bad = dot <= 1e-9 * np.linalg.norm(pa, axis=1) * np.linalg.norm(pb, axis=1)
     start = np.where(fwd[t, k], a[t, k], b[t, k])
-    return np.unique(start[bad])
+    if not edges:
+        return np.unique(start[bad])
+    return start[bad], np.stack([pa[bad], pb[bad]], axis=1) + apex[bad][:, None, :]
 
 
-def _insert_midpoints(points, curve, potential, curve_length, nxt, split):
-    j = nxt[split]
-    mid = 0.5 * (points[split] + points[j])
-    L = curve_length[curve[split]]
-    dphi = np.mod(potential[j] - potential[split], L)
-    phi = np.mod(potential[split] + 0.5 * dphi, L)
-    points = np.concatenate([points, mid])
-    curve = np.concatenate([curve, curve[split]])
+def _hiding_edges(points, curve, simp, a, b, fwd, check, carries) -> np.ndarray:
+    """Encroached boundary edges between a kept triangle and its circumcentre, where that centre is outside.
+
+    If no boundary edge is encroached, every circumcentre lies inside (Ruppert's lemma) and nothing is
+    tested. Otherwise the circumcentres of the obtuse kept triangles are tested against the sampled shape
+    (even-odd over the curves, shapely's prepared point-in-polygon), and the encroached edges closer to an
+    outside centre than its radius are returned.
+    """
+    start, seg = _encroached(points, simp, a, b, fwd, check, edges=True)
+    if len(start) == 0:
+        return start
+    q = points[simp]
+    angle_dot = np.einsum("tij,tij->ti", np.roll(q, -1, axis=1) - q, np.roll(q, 1, axis=1) - q)
+    cand = np.flatnonzero(carries & (angle_dot.min(axis=1) < 0))  # acute triangles hold their circumcentre
+    cc, rr = _circumcentres(points, simp[cand])
+    inside = np.zeros(len(cand), dtype=bool)
+    for c in range(int(curve.max()) + 1):
+        ring = points[curve == c]
+        lo, hi = ring.min(axis=0), ring.max(axis=0)
+        box = np.flatnonzero(np.all((cc >= lo) & (cc <= hi), axis=1))
+        if len(box):
+            poly = shapely.Polygon(ring)
+            shapely.prepare(poly)
+            inside[box] ^= shapely.contains_xy(poly, cc[box, 0], cc[box, 1])
+    if inside.all():
+        return np.zeros(0, dtype=np.int64)
+    cc, rr = cc[~inside], rr[~inside]
+    d = seg[None, :, 1, :] - seg[None, :, 0, :]
+    w = cc[:, None, :] - seg[None, :, 0, :]
+    t = np.clip(np.einsum("cej,cej->ce", w, d) / np.maximum(np.einsum("cej,cej->ce", d, d), 1e-300), 0.0, 1.0)
+    dist = np.linalg.norm(w - t[..., None] * d, axis=2)
+    return np.unique(start[np.any(dist < rr[:, None], axis=0)])
+
+
+def _insert_midpoints(points, curve, potential, curve_length, nxt, split, fractions=(0.5,)):
+    """Insert points at ``fractions`` of each boundary edge ``split -> nxt[split]``, keeping curve order."""
+    f = np.repeat(np.asarray(fractions, dtype=np.float64)[None, :], len(split), axis=0).ravel()
+    i = np.repeat(split, len(fractions))
+    j = nxt[i]
+    new = points[i] + f[:, None] * (points[j] - points[i])
+    L = curve_length[curve[i]]
+    phi = np.mod(potential[i] + f * np.mod(potential[j] - potential[i], L), L)
+    points = np.concatenate([points, new])
+    curve = np.concatenate([curve, curve[i]])
     potential = np.concatenate([potential, phi])
     order = np.lexsort((potential, curve))
     return points[order], curve[order], potential[order]
