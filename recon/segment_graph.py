@@ -146,7 +146,8 @@ def cell_adjacency(neighbors: np.ndarray, *, active: np.ndarray | None = None) -
     return np.stack([t[keep], u[keep]], axis=1), k[keep]
 
 
-def cut_components(n_cells: int, pairs: np.ndarray, cut: np.ndarray, *, active: np.ndarray | None = None) -> tuple[int, np.ndarray]:
+def cut_components(n_cells: int, pairs: np.ndarray, cut: np.ndarray, *,
+                   active: np.ndarray | None = None) -> tuple[int, np.ndarray]:
     """Parts of §3: connected components of the cells after cutting the adjacency along separators.
 
     Parameters
@@ -284,7 +285,8 @@ def _border_successor(cells, neighbors, label, points):
     pos = np.searchsorted(ks, want)
     count = np.searchsorted(ks, want, side="right") - pos
     if np.any(count == 0):
-        raise DecompositionError("part_boundary_loops: a part's border is not closed; are the cells consistently oriented?")
+        raise DecompositionError("part_boundary_loops: a part's border is not closed; "
+                                 "are the cells consistently oriented?")
     nxt = order[np.minimum(pos, len(ks) - 1)]
     pinch = np.flatnonzero(count > 1)
     if len(pinch):

@@ -114,7 +114,8 @@ def test_resample_curves_spacing_potential_and_corners():
 
 def test_resample_gives_at_least_16_points_per_curve():
     # a tiny square hole: spacing L/16 on it, its 4 corners kept -> 4 × 4; a tiny pentagon: 5 × ceil(16/5)
-    pts, cid, _, _ = resample_curves([rect(0, 0, 1, 1), circle(1e-3, 4, c=(0.5, 0.5)), circle(1e-3, 5, c=(0.2, 0.2))], 0.1)
+    curves = [rect(0, 0, 1, 1), circle(1e-3, 4, c=(0.5, 0.5)), circle(1e-3, 5, c=(0.2, 0.2))]
+    pts, cid, _, _ = resample_curves(curves, 0.1)
     assert np.bincount(cid).tolist() == [40, 16, 20]
 
 
@@ -298,7 +299,8 @@ def test_two_bodies_two_skeleton_components():
 
 def test_duplicates_and_collinear_runs_change_nothing():
     clean = skeletonize(Shape2D((rect(0, 0, 2, 1),)), spacing=0.01)
-    messy_ring = np.array([[0, 0], [0, 0], [0.5, 0], [1.5, 0], [2, 0], [2, 1], [2, 1], [1, 1], [0, 1], [0, 0]], dtype=float)
+    messy_ring = np.array([[0, 0], [0, 0], [0.5, 0], [1.5, 0], [2, 0], [2, 1], [2, 1], [1, 1], [0, 1], [0, 0]],
+                          dtype=float)
     messy = skeletonize(Shape2D((messy_ring,)), spacing=0.01)
     assert kinds(messy) == kinds(clean)
     assert len(messy.skeleton.edges) == len(clean.skeleton.edges)
@@ -339,3 +341,22 @@ def test_bad_input_raises_named_errors():
 def test_crossing_curves_raise():
     with pytest.raises(DecompositionError, match="cross"):
         skeletonize(Shape2D((rect(0, 0, 2, 2), rect(1, 1, 3, 3))), spacing=0.05)
+
+
+@pytest.mark.parametrize("seed", [18, 27, 379])  # 379 has a hidden circumcentre without that refinement
+def test_random_polygons_keep_vertices_inside(seed):
+    # random star-shaped polygons with acute corners. If no boundary edge is encroached every circumcentre is
+    # inside (Ruppert's lemma); skeletonize refines the encroached edges that hide a kept circumcentre, so
+    # every skeleton vertex ends up strictly inside and the parts still tile the sampled shape.
+    rng = np.random.default_rng(seed)
+    n = rng.integers(5, 60)
+    th = np.sort(rng.uniform(0, 2 * np.pi, n))
+    r = rng.uniform(0.3, 1.0, n)
+    ring = np.c_[r * np.cos(th), r * np.sin(th)]
+    assert shapely.Polygon(ring).is_valid
+    res = skeletonize(Shape2D((ring,)))
+    region = sampled_region(res)
+    v = res.skeleton.vertices
+    assert np.all(shapely.contains_xy(region, v[:, 0], v[:, 1]))
+    assert res.extra["encroached_edges"] == 0
+    assert sum(p.area for p in res.parts) == pytest.approx(region.area, rel=1e-9)

@@ -166,7 +166,8 @@ def resample_curves(curves, spacing: float) -> tuple[np.ndarray, np.ndarray, np.
     lengths = _perimeters(curves)
     estimate = float(np.maximum(np.ceil(lengths / spacing), MIN_SAMPLES_PER_CURVE).sum())
     if estimate > MAX_SAMPLES:
-        raise InputError(f"spacing: {spacing:g} would give ~{estimate:.3g} samples (more than {MAX_SAMPLES}); use a larger spacing")
+        raise InputError(f"spacing: {spacing:g} would give ~{estimate:.3g} samples (more than {MAX_SAMPLES}); "
+                         "use a larger spacing")
     pts, cid, phi = [], [], []
     for i, c in enumerate(curves):
         closed = np.vstack([c, c[:1]])
@@ -212,7 +213,8 @@ def _successor(curve: np.ndarray) -> np.ndarray:
     return np.where(end, first, idx + 1)
 
 
-def _omega(a: np.ndarray, b: np.ndarray, curve: np.ndarray, potential: np.ndarray, curve_length: np.ndarray) -> np.ndarray:
+def _omega(a: np.ndarray, b: np.ndarray, curve: np.ndarray, potential: np.ndarray,
+           curve_length: np.ndarray) -> np.ndarray:
     """ω of §2 eq. 1: the shorter arc between samples ``a`` and ``b`` of one curve, ∞ across curves."""
     d = np.abs(potential[a] - potential[b])
     d = np.minimum(d, curve_length[curve[a]] - d)
@@ -284,10 +286,12 @@ def _delaunay(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     try:
         tri = Delaunay(points)
     except QhullError as err:
-        raise DecompositionError(f"shape: Qhull could not triangulate the {len(points)} boundary samples ({err.args[0].splitlines()[0]})") from err
+        raise DecompositionError(f"shape: Qhull could not triangulate the {len(points)} boundary samples "
+                                 f"({err.args[0].splitlines()[0]})") from err
     if len(tri.coplanar):
         p = points[tri.coplanar[0, 0]]
-        raise DecompositionError(f"shape: boundary samples coincide near ({p[0]:.6g}, {p[1]:.6g}); do curves touch or cross?")
+        raise DecompositionError(f"shape: boundary samples coincide near ({p[0]:.6g}, {p[1]:.6g}); "
+                                 "do curves touch or cross?")
     simp = tri.simplices.astype(np.int64)
     nb = tri.neighbors.astype(np.int64)
     e1, e2 = points[simp[:, 1]] - points[simp[:, 0]], points[simp[:, 2]] - points[simp[:, 0]]
@@ -456,7 +460,10 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     if not isinstance(shape, Shape2D):
         raise InputError(f"shape: expected a Shape2D, got {type(shape).__name__}")
     spacing = default_spacing(shape) if spacing is None else _check_positive(spacing, "spacing")
-    omega_min = default_omega_min(shape, spacing=spacing) if omega_min is None else _check_positive(omega_min, "omega_min", allow_zero=True)
+    if omega_min is None:
+        omega_min = default_omega_min(shape, spacing=spacing)
+    else:
+        omega_min = _check_positive(omega_min, "omega_min", allow_zero=True)
     points, curve, potential, curve_length = resample_curves(shape.curves, spacing)
     tri = _Triangulation(points, curve, potential, curve_length, omega_min)
     points, curve, potential = tri.points, tri.curve, tri.potential
@@ -516,13 +523,15 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     has_v = tri_vertex >= 0
     n_v = len(used)
     cnt = np.bincount(tri_vertex[has_v], minlength=n_v)
-    vertices = np.stack([np.bincount(tri_vertex[has_v], weights=cc[has_v, i], minlength=n_v) for i in range(2)], axis=1) / cnt[:, None]
+    vertices = np.stack([np.bincount(tri_vertex[has_v], weights=cc[has_v, i], minlength=n_v) for i in range(2)],
+                        axis=1) / cnt[:, None]
     radius = np.bincount(tri_vertex[has_v], weights=rr[has_v], minlength=n_v) / cnt
     vpart = np.full(n_v, -1, dtype=np.int64)
     vpart[tri_vertex[has_v]] = label[has_v]
     kinds = sg.part_kinds(vpart, degree, n_parts)
     if np.any(kinds == sg.NO_SKELETON):  # pragma: no cover - cannot happen, see Notes
-        log.warning("skeletonize: %d parts hold no skeleton vertex; labelled terminal", int(np.sum(kinds == sg.NO_SKELETON)))
+        log.warning("skeletonize: %d parts hold no skeleton vertex; labelled terminal",
+                    int(np.sum(kinds == sg.NO_SKELETON)))
         kinds[kinds == sg.NO_SKELETON] = sg.TERMINAL
 
     real_idx = np.flatnonzero(real)[rep]  # representative Voronoi edge (pair index) of each skeleton edge
