@@ -9,11 +9,16 @@ triangles of §3 plain array lookups.
 Pipeline of :func:`skeletonize`:
 
 1. :func:`resample_curves` samples each curve at ``spacing`` and gives each sample its curve potential φ.
-2. Delaunay triangulation, made *conforming*: every sampled boundary edge must be a Delaunay edge, and no
-   triangle inside the shape may have its circumcentre beyond one of its boundary edges (the edge would be
-   "encroached", Ruppert's term). Offending boundary edges get their midpoint inserted and the triangulation
-   is redone, for a few rounds. Then every triangle is wholly inside or outside, the inside triangles tile
-   the (sampled) shape exactly, and their circumcentres lie inside it.
+2. Delaunay triangulation, made *conforming*: every sampled boundary edge must be a Delaunay edge (missing
+   ones are split in four), so every triangle is wholly inside or outside and the inside triangles tile the
+   sampled shape exactly. Then the circumcentres that will be skeleton vertices are kept inside the shape:
+   a boundary edge is "encroached" (Ruppert's term) when the angle opposite it in its inside triangle is
+   not acute, which puts that triangle's circumcentre on or beyond the edge; encroached edges of triangles
+   that carry a kept Voronoi edge, and encroached edges that hide another kept triangle's circumcentre, are
+   halved. Up to 12 rounds, each a new triangulation; most shapes need none. Encroachment elsewhere is left
+   alone: refining it would cascade at every acute corner for circumcentres that are pruned anyway.
+   Limitation: with ω_min of a few spacings or less, branches run into acute corners (< ~60°) where
+   12 rounds may not suffice; a warning is logged and such vertices lie less than one spacing outside.
 3. Inside/outside of the triangles by the even-odd rule: components of the triangle adjacency cut along the
    boundary edges, with the parity of boundary crossings from the unbounded side.
 4. §2 classification of every Voronoi edge at once: finite (condition 1), both triangles inside
