@@ -294,6 +294,18 @@ def test_two_bodies_two_skeleton_components():
     assert kinds(res)["terminal"] == 8
 
 
+def test_island_in_a_hole_by_even_odd():
+    # a frame (square with a square hole) and a disk inside the hole: depth 0, 1, 2 -> inside, outside, inside
+    frame, hole, island = rect(0, 0, 4, 4), rect(1, 1, 3, 3), circle(0.5, 200, c=(2, 2))
+    res = skeletonize(Shape2D((frame, hole, island)))
+    rank, n_comp = cycle_rank(res.skeleton)
+    assert (rank, n_comp) == (1, 2)  # the frame's loop, and the island's one-point skeleton
+    assert sum(p.area for p in res.parts) == pytest.approx(16 - 4 + even_odd_area([res.points[res.curve == 2]]),
+                                                           rel=1e-9)
+    centre = np.flatnonzero(np.linalg.norm(res.skeleton.vertices - 2.0, axis=1) < res.spacing)
+    assert len(centre) == 1 and res.skeleton.degree[centre[0]] == 0
+
+
 # --------------------------------------------------------------------------------------- awkward inputs
 
 

@@ -451,6 +451,8 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
       the whole body.
     - A skeleton vertex is the mean of the coincident circumcentres it merges; its radius their mean
       circumradius, i.e. the distance to its sites.
+    - The segment graph has one edge per bridge, so it can hold parallel edges: a skeleton loop around a
+      hole with one junction on it gives two graph edges between that junction and the loop's linear part.
     - Pruned triangles belong to the part they hang from, so the parts tile the shape. A part holding no
       skeleton vertex cannot arise: every piece between separators holds a bridge's endpoint, and a body
       without separators holds its skeleton or the one vertex above.
