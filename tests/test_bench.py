@@ -1,0 +1,72 @@
+"""The benchmark harness: its measures on analytic inputs, and one real run where failures become rows."""
+
+import json
+
+import numpy as np
+import pytest
+
+from recon.bench import COLUMNS, STAGES, Case, fixture_cases, loglog_slope, run_benchmark, type_agreement
+from recon.fixtures import load_fixture
+
+
+def test_type_agreement_is_area_weighted_over_true_faces():
+    # Four unit triangles: true face 0 (plane) has three, true face 1 (cylinder) one.
+    true = np.array([0, 0, 0, 1])
+    areas = np.ones(4)
+    same = np.array([5, 5, 5, 7])
+    assert type_agreement(same, true, areas, {5: "plane", 7: "cylinder"}, ("plane", "cylinder")) == 1.0
+    # our face 7 was fitted as a plane: the cylinder's area (1 of 4) disagrees
+    assert type_agreement(same, true, areas, {5: "plane", 7: "plane"}, ("plane", "cylinder")) == 0.75
+    # one face of ours over everything: it is the best overlap of both true faces, a plane
+    assert type_agreement(np.zeros(4, int), true, areas, {0: "plane"}, ("plane", "cylinder")) == 0.75
+    # weights are areas, not triangle counts; unknown truth (-1) is ignored
+    w = np.array([1.0, 1.0, 1.0, 9.0])
+    assert type_agreement(same, true, w, {5: "plane", 7: "plane"}, ("plane", "cylinder")) == pytest.approx(0.25)
+    assert type_agreement(same, np.array([0, 0, 0, -1]), areas, {5: "plane"}, ("plane", "cylinder")) == 1.0
+    assert np.isnan(type_agreement(same, -np.ones(4, int), areas, {5: "plane"}, ("plane",)))
+
+
+def test_loglog_slope_recovers_power_law_exponent():
+    n = np.array([1e4, 1e5, 1e6, 2e6])
+    assert loglog_slope(n, 3.0 * n**1.5) == pytest.approx(1.5)
+    assert loglog_slope(n, 0.2 * n) == pytest.approx(1.0)
+    # a case that failed (None/NaN) drops out; one point left gives no slope
+    assert loglog_slope(n, [1.0, 10.0, np.nan, None]) == pytest.approx(1.0)
+    assert np.isnan(loglog_slope(n[:1], [1.0]))
+
+
+def test_run_writes_both_files_and_failures_become_rows(tmp_path):
+    (case,) = [c for c in fixture_cases() if c.name == "box_fillet/coarse"]
+    bad = tmp_path / "bad.off"
+    bad.write_text("this is not a mesh\n")
+    broken = Case("mesh/bad", "meshes", "mesh", {"path": str(bad)}, timeout=300)
+    slow = Case("mesh/too-slow", "meshes", "mesh", {"path": str(bad)}, timeout=0.01)
+    res = run_benchmark([case, broken, slow], out=tmp_path / "out")
+
+    data = json.loads(res.json_path.read_text())
+    rows = {r["case"]: r for r in data["rows"]}
+    assert set(rows) == {"box_fillet/coarse", "mesh/bad", "mesh/too-slow"}
+    for r in rows.values():
+        assert set(COLUMNS) <= set(r)
+
+    fx = load_fixture("box_fillet", "coarse")
+    good = rows["box_fillet/coarse"]
+    assert good["status"] in ("ok", "invalid"), good["error"]
+    assert good["triangles"] == len(fx.faces)  # the fixture is clean: nothing dropped
+    assert good["faces_true"] == 26
+    assert good["types_true"] == "12 cylinder, 8 sphere, 6 plane"
+    assert set(good["seconds"]) == set(STAGES)
+    assert 0.0 <= good["type_agreement"] <= 1.0 and 0.0 <= good["recovered"] <= 1.0
+    # the fixture's vertices were projected onto the true surfaces (stored as float32): mesh → true STEP ≈ 0
+    assert good["true_m2s_max"] < 1e-3
+    assert good["peak_mb"] > 0 and good["step_bytes"] > 0
+
+    assert rows["mesh/bad"]["status"] == "error"
+    assert rows["mesh/bad"]["error"].startswith("load:")
+    assert rows["mesh/too-slow"]["status"] == "timeout"
+
+    md = res.md_path.read_text()
+    assert "## Fixtures (ground truth)" in md and "| box_fillet/coarse |" in md
+    assert "`mesh/bad` — error: load:" in md
+    for key in COLUMNS:
+        assert f"- `{key}`:" in md
