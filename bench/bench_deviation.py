@@ -6,8 +6,8 @@ at least N vertices, with Gaussian noise σ = 0.02 on the vertices (the deviatio
 point takes the full path). A B-spline surface patch is timed separately: its points are projected
 one by one with OCP (``ShapeAnalysis_Surface.NextValueOfUV``), the analytic faces in numpy.
 
-Columns: ``prepare`` (tessellate + index the B-rep), ``mesh→shape`` (exact signed distances of all
-vertices), ``deviation()`` (both directions + per-face report, 20k B-rep samples for the way back),
+Columns: ``prepare`` (tessellate + index the B-rep), ``mesh→shape`` (exact signed distances of
+exactly N noisy points on the part), then on the subdivided mesh nearest N vertices: ``deviation()`` (both directions + per-face report, 20k B-rep samples for the way back),
 ``preview`` (PNG), in seconds, best of ``--repeat`` runs.
 
     python bench/bench_deviation.py            # 10k, 100k, 1M
@@ -41,9 +41,10 @@ def part():
 
 
 def noisy_mesh(shape, n, sigma, rng):
+    """The triangulation subdivided to the vertex count nearest ``n`` (a factor ~4 per step)."""
     verts, tris = shape.tessellate(0.05)
     mesh = trimesh.Trimesh(np.array([(p.X, p.Y, p.Z) for p in verts]), np.array(tris), process=True)
-    while len(mesh.vertices) < n:
+    while abs(np.log(len(mesh.vertices) * 4 / n)) < abs(np.log(len(mesh.vertices) / n)):
         mesh = mesh.subdivide()
     v = mesh.vertices + rng.normal(scale=sigma, size=mesh.vertices.shape)
     return v, np.asarray(mesh.faces)
@@ -63,18 +64,21 @@ def main():
     shape = part()
     rng = np.random.default_rng(0)
     print(f"part: {len(shape.faces())} faces; noise σ = 0.02")
-    print(f"{'points':>9} {'triangles':>10} {'prepare':>8} {'mesh→shape':>11} {'µs/pt':>6} {'deviation()':>12} "
-          f"{'preview':>8} {'max |d|':>8} {'rms':>8}")
+    print(f"{'points':>9} {'prepare':>8} {'mesh→shape':>11} {'µs/pt':>6} | {'mesh verts':>10} {'triangles':>10} "
+          f"{'deviation()':>12} {'preview':>8} {'max |d|':>8} {'rms':>8}")
     with tempfile.TemporaryDirectory() as tmp:
         for n in args.sizes:
             v, f = noisy_mesh(shape, n, 0.02, rng)
             t_prep, brep = best_of(lambda: BrepDistance(shape.wrapped), args.repeat)
-            t_m2s, (signed, _, _) = best_of(lambda: brep.signed_distance(v), args.repeat)
+            # Exactly n points for the mesh → shape column: noisy area-uniform points on the part.
+            pts, _ = brep.surface_samples(n)
+            pts = pts[rng.permutation(len(pts))[:n]] + rng.normal(scale=0.02, size=(min(n, len(pts)), 3))
+            t_m2s, _ = best_of(lambda: brep.signed_distance(pts), args.repeat)
             t_dev, rep = best_of(lambda: deviation(v, f, shape), args.repeat)
             t_png, _ = best_of(lambda: plot_deviation(v, f, rep.signed, Path(tmp) / "p.png"), 1)
             m = rep.mesh_to_shape
-            print(f"{len(v):>9} {len(f):>10} {t_prep:>8.2f} {t_m2s:>11.2f} {1e6 * t_m2s / len(v):>6.1f} "
-                  f"{t_dev:>12.2f} {t_png:>8.2f} {m.max:>8.4f} {m.rms:>8.4f}")
+            print(f"{len(pts):>9} {t_prep:>8.2f} {t_m2s:>11.2f} {1e6 * t_m2s / len(pts):>6.1f} | {len(v):>10} "
+                  f"{len(f):>10} {t_dev:>12.2f} {t_png:>8.2f} {m.max:>8.4f} {m.rms:>8.4f}")
 
     # A B-spline patch: per-point OCP projection.
     grid = [[(x, y, 2 * np.sin(x / 5) * np.cos(y / 7)) for x in np.linspace(0, 20, 6)] for y in np.linspace(0, 20, 6)]
