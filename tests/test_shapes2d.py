@@ -99,6 +99,28 @@ def test_diagonal_pixel_chain_stays_one_curve():
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
+def test_contour_tracer_matches_skimage_find_contours(seed):
+    """Differential: recon's boundary-cell tracer against skimage's find_contours on random pixels."""
+    from skimage.measure import find_contours
+
+    from recon.skeleton2d._readers import _level_half_contours
+
+    rng = np.random.default_rng(seed)
+    mask = rng.random((50, 70)) < 0.45
+    mask[10:40, 20:60] |= rng.random((30, 40)) < 0.9  # a large blob with pin holes next to the noise
+    ours = _level_half_contours(mask)
+    ref = [c[:-1] for c in find_contours(np.pad(mask, 1).astype(float), 0.5, fully_connected="high")]
+
+    def key(c):  # the curve as a point set, and its absolute area (which needs the right point order)
+        pts = tuple(sorted(map(tuple, np.round(c * 2).astype(int).tolist())))
+        x, y = c[:, 1], c[:, 0]
+        return pts, round(abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))) / 2, 6)
+
+    assert len(ours) == len(ref) > 50
+    assert sorted(map(key, ours)) == sorted(map(key, ref))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
 def test_traced_curves_pass_full_validation_even_on_salt_and_pepper(seed):
     """shape_from_mask skips the shapely checks because marching squares cannot make crossing curves: check it
     on random pixels, where every kind of saddle and diagonal contact occurs."""

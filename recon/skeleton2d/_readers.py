@@ -157,8 +157,6 @@ def shape_from_mask(mask, *, invert: bool = False, name: str = "mask") -> Shape2
     -------
     Shape2D
     """
-    from skimage.measure import find_contours
-
     mask = np.asarray(mask)
     if mask.ndim != 2:
         raise InputError(f"{name}: mask has shape {mask.shape}, expected a 2D (h, w) array")
@@ -168,10 +166,9 @@ def shape_from_mask(mask, *, invert: bool = False, name: str = "mask") -> Shape2
     if not mask.any():
         raise InputError(f"{name}: no foreground pixels" + (" after invert" if invert else ""))
     h = mask.shape[0]
-    padded = np.pad(mask, 1).astype(np.float64)
     curves = []
     dropped = 0
-    for rc in find_contours(padded, 0.5, fully_connected="high"):
+    for rc in _level_half_contours(mask):
         xy = np.column_stack([rc[:, 1] - 1.0, h - rc[:, 0]])
         xy = _drop_repeats(xy)
         if len(xy) < 3 or abs(_signed_area(xy)) < MIN_SPECK_AREA:
@@ -185,6 +182,86 @@ def shape_from_mask(mask, *, invert: bool = False, name: str = "mask") -> Shape2
     # No shapely validation: level-0.5 contours of a 0/1 image pass through distinct edge midpoints, and each
     # cell's pieces (saddles resolved one way) never cross, so the curves are simple and pairwise disjoint.
     return Shape2D(curves=tuple(np.ascontiguousarray(c) for c in curves))
+
+
+def _cell_segments() -> dict[int, list[tuple[int, int]]]:
+    """Marching-squares table for a 0/1 image at level 1/2, foreground 8-connected, segments oriented.
+
+    A cell's corners are 0 = top-left, 1 = top-right, 2 = bottom-right, 3 = bottom-left (row down); its edges
+    0 = top, 1 = right, 2 = bottom, 3 = left. The case code is ``8·c0 + 4·c1 + 2·c2 + c3``. Each segment joins
+    two edge midpoints and is oriented with the background corners it cuts off on its right, so every contour
+    is traversed the same way round and successors are unique.
+    """
+    corners = np.array([[0, 0], [0, 1], [1, 1], [1, 0]], dtype=np.float64)
+    ends = ((0, 1), (1, 2), (2, 3), (3, 0))
+    mids = corners[[e[0] for e in ends]] * 0.5 + corners[[e[1] for e in ends]] * 0.5
+    table = {}
+    for code in range(16):
+        on = [bool(code >> (3 - k) & 1) for k in range(4)]
+        crossing = [e for e, (p, q) in enumerate(ends) if on[p] != on[q]]
+        if len(crossing) == 2:
+            groups = [(tuple(crossing), [k for k in range(4) if not on[k]])]
+        elif len(crossing) == 4:  # saddle: foreground connected, so each background corner is cut off alone
+            groups = [(tuple(e for e in range(4) if low in ends[e]), [low]) for low in range(4) if not on[low]]
+        else:
+            groups = []
+        segs = []
+        for (e1, e2), low in groups:
+            v, w = mids[e2] - mids[e1], corners[low].mean(axis=0) - mids[e1]
+            segs.append((e1, e2) if v[0] * w[1] - v[1] * w[0] < 0 else (e2, e1))
+        table[code] = segs
+    return table
+
+
+_CELL_SEGMENTS = _cell_segments()
+
+
+def _level_half_contours(mask: np.ndarray) -> list[np.ndarray]:
+    """Closed level-1/2 contours of a boolean image, (row, col) in the 1-padded image, first point not repeated.
+
+    The same curves as ``skimage.measure.find_contours(pad(mask, 1), 0.5, fully_connected="high")`` (checked in
+    the tests), found from the boundary cells only, which makes it about twice as fast on large silhouettes.
+    """
+    p = np.pad(mask, 1)
+    rows, cols = p.shape
+    code = np.zeros((rows - 1, cols - 1), dtype=np.uint8)
+    for shift, corner in ((3, p[:-1, :-1]), (2, p[:-1, 1:]), (1, p[1:, 1:]), (0, p[1:, :-1])):
+        code |= corner.astype(np.uint8) << shift
+    ii, jj = np.nonzero((code != 0) & (code != 15))
+    case = code[ii, jj]
+    # Global midpoint ids: horizontal edges (r, j)-(r, j+1) first, then vertical edges (r, j)-(r+1, j).
+    n_hor = rows * (cols - 1)
+    edge_id = np.stack(
+        [ii * (cols - 1) + jj, n_hor + ii * cols + jj + 1, (ii + 1) * (cols - 1) + jj, n_hor + ii * cols + jj], axis=1
+    )
+    src, dst = [], []
+    for k, segs in _CELL_SEGMENTS.items():
+        sel = case == k
+        if segs and sel.any():
+            for e1, e2 in segs:
+                src.append(edge_id[sel, e1])
+                dst.append(edge_id[sel, e2])
+    if not src:
+        return []
+    src_list = np.concatenate(src).tolist()
+    successor = dict(zip(src_list, np.concatenate(dst).tolist()))
+    curves = []
+    seen = set()
+    for start in src_list:
+        if start in seen:
+            continue
+        loop = [start]
+        j = successor[start]
+        while j != start:
+            loop.append(j)
+            j = successor[j]
+        seen.update(loop)
+        ids = np.array(loop)
+        hor = ids < n_hor
+        r = np.where(hor, ids // (cols - 1), (ids - n_hor) // cols) + np.where(hor, 0.0, 0.5)
+        c = np.where(hor, ids % (cols - 1), (ids - n_hor) % cols) + np.where(hor, 0.5, 0.0)
+        curves.append(np.column_stack([r, c]))
+    return curves
 
 
 def _json_curves(path: Path) -> list:
