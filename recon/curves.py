@@ -463,12 +463,20 @@ def _vertex_parts(network: CurveNetwork) -> list[list[int]]:
     return [sorted(s) for s in parts]
 
 
-def meeting_point(x0, parts, project: Projector, *, iterations: int = 8, damping: float = 1e-3):
-    """Least-squares meeting point of several surfaces near ``x0`` (Gauss–Newton on tangent planes).
+#: Surfaces meeting at less than this angle are treated as tangent: their intersection is too poorly
+#: conditioned to pin a point down (a noise-level change of a fit moves it by noise / sin(angle)).
+TANGENT_ANGLE = np.deg2rad(10.0)
 
-    Minimises ``Σ_i (n_i · (x − q_i))² + damping² |x − x0|²`` where ``q_i`` is the projection of
-    ``x`` onto surface ``i`` and ``n_i`` its normal; the damping term fixes the directions the
-    surfaces leave free (tangent surfaces, two surfaces meeting along a curve).
+
+def meeting_point(x0, parts, project: Projector, *, iterations: int = 8, limit: float | None = None):
+    """Meeting point of several surfaces near ``x0`` (Gauss–Newton on their tangent planes, truncated SVD).
+
+    Each step solves ``n_i · (x − q_i) = 0`` (``q_i`` the projection of ``x`` onto surface ``i``, ``n_i`` its
+    normal) in the least-squares sense, keeping only the directions whose singular value is above
+    ``sin(TANGENT_ANGLE)``: the directions the surfaces fix. The others (along the curve two surfaces share,
+    or anywhere where fitted surfaces meet tangentially, as a fillet's sphere and cylinders do) keep
+    ``x0``'s position, the labelled mesh's own. A point that still moves farther than ``limit`` goes back
+    to the mean of its projections.
 
     Returns
     -------
@@ -476,9 +484,10 @@ def meeting_point(x0, parts, project: Projector, *, iterations: int = 8, damping
     gap : float
         Largest distance of ``x`` to the surfaces.
     """
-    x = np.asarray(x0, dtype=np.float64).copy()
-    x0 = x.copy()
-    for _ in range(iterations):
+    x0 = np.asarray(x0, dtype=np.float64).copy()
+    x = x0.copy()
+    smin = np.sin(TANGENT_ANGLE)
+    for _ in range(iterations if parts else 0):
         qs, ns = [], []
         for p in parts:
             q, nrm = project(p, x[None])
@@ -486,19 +495,28 @@ def meeting_point(x0, parts, project: Projector, *, iterations: int = 8, damping
             ns.append(nrm[0])
         q = np.array(qs)
         nrm = np.array(ns)
-        a = np.vstack([nrm, damping * np.eye(3)])
-        rhs = np.concatenate([np.einsum("ij,ij->i", nrm, q), damping * x0])
-        x_new = np.linalg.lstsq(a, rhs, rcond=None)[0]
-        if np.linalg.norm(x_new - x) < 1e-12:
-            x = x_new
+        rhs = np.einsum("ij,ij->i", nrm, q - x)
+        u, sv, vt = np.linalg.svd(nrm, full_matrices=False)
+        keep = sv > smin
+        step = vt[keep].T @ ((u[:, keep].T @ rhs) / sv[keep])
+        x = x + step
+        if np.linalg.norm(step) < 1e-12:
             break
-        x = x_new
+    if limit is not None and parts and np.linalg.norm(x - x0) > limit:
+        x = np.mean([project(p, x0[None])[0][0] for p in parts], axis=0)
     gap = max(float(np.linalg.norm(project(p, x[None])[0][0] - x)) for p in parts) if parts else 0.0
     return x, gap
 
 
-def _project_two(pts, pa, pb, project: Projector, iterations: int):
-    """Alternate projections onto two surfaces, then a tangent-plane meeting step, for all points at once."""
+def _project_two(pts, pa, pb, project: Projector, iterations: int, limit: float | None = None):
+    """Alternate projections onto two surfaces, then a tangent-plane meeting step, for all points at once.
+
+    Where the step would carry a point more than ``limit`` away from where it started (two fitted surfaces
+    that meet tangentially, like a fillet and its face, cross at a grazing angle far from the mesh's
+    boundary, or not at all) the point goes to the midpoint of its projections instead: between the two
+    surfaces, at the labelled boundary.
+    """
+    x0 = pts.copy()
     x = pts.copy()
     for _ in range(iterations):
         qa, na = project(pa, x)
@@ -508,7 +526,7 @@ def _project_two(pts, pa, pb, project: Projector, iterations: int):
         db = np.einsum("ij,ij->i", nb, qb - x)
         g = np.einsum("ij,ij->i", na, nb)
         det = 1.0 - g * g
-        ok = det > 1e-6
+        ok = det > np.sin(TANGENT_ANGLE) ** 2
         # x + α na + β nb with na·(…)=da, nb·(…)=db
         alpha = np.where(ok, (da - g * db) / np.where(ok, det, 1.0), 0.5 * (da + db))
         beta = np.where(ok, (db - g * da) / np.where(ok, det, 1.0), 0.0)
@@ -516,6 +534,12 @@ def _project_two(pts, pa, pb, project: Projector, iterations: int):
         # Nearly tangent surfaces: no well-defined intersection; take the midpoint of the projections.
         step[~ok] = 0.5 * (qa[~ok] + qb[~ok]) - x[~ok]
         x = x + step
+        if limit is not None:
+            far = np.linalg.norm(x - x0, axis=1) > limit
+            if np.any(far):
+                qa0, _ = project(pa, x0[far])
+                qb0, _ = project(pb, x0[far])
+                x[far] = 0.5 * (qa0 + qb0)
     return x
 
 
@@ -544,11 +568,14 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
     if not tolerance > 0:
         raise InputError(f"network_geometry: `tolerance` must be > 0, got {tolerance!r}")
     fit_curve = fit_curve or fit_edge_curve
+    # How far the network may move from the labelled mesh boundary onto an intersection of its surfaces:
+    # the mesh boundary is within a few noise levels (and so a few tolerances) of the true edge.
+    limit = 3.0 * tolerance
     vparts = _vertex_parts(network)
     points = np.empty_like(network.points)
     vgap = np.zeros(network.n_vertices)
     for v in range(network.n_vertices):
-        points[v], vgap[v] = meeting_point(network.points[v], vparts[v], project)
+        points[v], vgap[v] = meeting_point(network.points[v], vparts[v], project, limit=limit)
 
     out, offs, egap, curves = [], [0], [], []
     for e in range(network.n_edges):
@@ -563,7 +590,7 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
             if right == OUTSIDE:
                 inner = project(int(left), inner)[0]
             else:
-                inner = _project_two(inner, int(left), int(right), project, iterations)
+                inner = _project_two(inner, int(left), int(right), project, iterations, limit)
         pts = np.vstack([points[a][None], inner, points[b][None]])
         gap = 0.0
         if len(inner):

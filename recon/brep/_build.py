@@ -17,6 +17,7 @@ from typing import Mapping
 
 import numpy as np
 from OCP.BRep import BRep_Builder, BRep_Tool
+from OCP.BRepAdaptor import BRepAdaptor_Curve2d
 from OCP.BRepBuilderAPI import (
     BRepBuilderAPI_MakeEdge,
     BRepBuilderAPI_MakeFace,
@@ -39,7 +40,7 @@ from OCP.ShapeFix import ShapeFix_Edge, ShapeFix_Face, ShapeFix_Shell, ShapeFix_
 from OCP.TColgp import TColgp_Array1OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID, TopAbs_VERTEX, TopAbs_WIRE
-from OCP.TopExp import TopExp_Explorer
+from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shell
 
 from ..curves import OUTSIDE, CurveNetwork, EdgeCurve, NetworkGeometry, network_geometry
@@ -228,13 +229,33 @@ def _make_edge(curve: EdgeCurve, v1, v2, builder: BRep_Builder):
 # --------------------------------------------------------------------------------------------------
 
 
-def _wire(refs, edges):
+def _wire(refs, edges, context=None):
+    """A wire of the shared edges ``refs`` (signed ``±(edge + 1)``), as the context has them by now.
+
+    An earlier face's ShapeFix may have replaced or split a shared edge (recorded in ``context``); this face
+    must use the same replacement or the two faces stop sharing it.
+    """
     mk = BRepBuilderAPI_MakeWire()
     for r in refs:
         e = edges[abs(r) - 1]
-        mk.Add(e if r > 0 else TopoDS.Edge_s(e.Reversed()))
-        if not mk.IsDone():
-            raise BrepError(f"BRepBuilderAPI_MakeWire failed ({mk.Error()}) at edge {abs(r) - 1}")
+        e = e if r > 0 else TopoDS.Edge_s(e.Reversed())
+        pieces = [e]
+        if context is not None:
+            now = context.Apply(e)
+            if now.IsNull():
+                raise BrepError(f"shared edge {abs(r) - 1} was removed by an earlier repair")
+            if now.ShapeType() == TopAbs_EDGE:
+                pieces = [TopoDS.Edge_s(now)]
+            else:
+                pieces = []
+                exp = TopExp_Explorer(now, TopAbs_EDGE)
+                while exp.More():
+                    pieces.append(TopoDS.Edge_s(exp.Current()))
+                    exp.Next()
+        for piece in pieces:
+            mk.Add(piece)
+            if not mk.IsDone():
+                raise BrepError(f"BRepBuilderAPI_MakeWire failed ({mk.Error()}) at edge {abs(r) - 1}")
     return mk.Wire()
 
 
@@ -259,7 +280,7 @@ def _face_on_surface(model: SurfaceModel, loops: list[np.ndarray], edges, vote: 
 def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context):
     if vote < 0:
         loops = [-r[::-1] for r in loops]
-    wires = [_wire(r, edges) for r in loops]
+    wires = [_wire(r, edges, context) for r in loops]
     mk = BRepBuilderAPI_MakeFace(model.geom, wires[0], False)
     if not mk.IsDone():
         raise BrepError(f"BRepBuilderAPI_MakeFace failed ({mk.Error()})")
@@ -290,12 +311,36 @@ def _fix_edges(face) -> None:
     measures the 3D/2D deviation and raises the edge (and vertex) tolerance to it.
     """
     sfe = ShapeFix_Edge()
+    surface = BRep_Tool.Surface_s(face)
     exp = TopExp_Explorer(face, TopAbs_EDGE)
     while exp.More():
         edge = TopoDS.Edge_s(exp.Current())
         sfe.FixSameParameter(edge, face)
         sfe.FixVertexTolerance(edge, face)
+        _cover_pcurve_ends(edge, face, surface)
         exp.Next()
+
+
+def _cover_pcurve_ends(edge, face, surface) -> None:
+    """Raise each vertex's tolerance to reach the ends of the edge's p-curve mapped onto the surface.
+
+    The vertex is the surfaces' least-squares meeting point, off a fitted surface by up to the fit residual;
+    the p-curve ends lie on the surface. Without this the wire is open in the face's parameter space
+    (BRepCheck NotClosed) although it is closed in 3D.
+    """
+    first, last = TopExp.FirstVertex_s(edge), TopExp.LastVertex_s(edge)
+    if first.IsNull() or last.IsNull():
+        return
+    if not BRep_Tool.IsGeometric_s(edge) or BRep_Tool.CurveOnSurface_s(edge, face, 0.0, 0.0) is None:
+        return
+    c2d = BRepAdaptor_Curve2d(edge, face)
+    t0, t1 = c2d.FirstParameter(), c2d.LastParameter()
+    builder = BRep_Builder()
+    for vtx, t in ((first, t0), (last, t1)):
+        uv = c2d.Value(t)
+        d = surface.Value(uv.X(), uv.Y()).Distance(BRep_Tool.Pnt_s(vtx))
+        if d > BRep_Tool.Tolerance_s(vtx):
+            builder.UpdateVertex(vtx, 1.05 * d)
 
 
 def face_problems(face) -> str:
