@@ -140,3 +140,19 @@ def test_cli(tmp_path):
     bad = tmp_path / "bad.stl"
     bad.write_text("not a mesh")
     assert main(["decompose", str(bad), "--json", str(out)]) == 2
+
+
+def test_tolerance_and_fits_exposed(box):
+    # the clean rounded box: every part lies on one analytic surface of the right type and radius
+    V, F, L, d = box
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    assert d.tolerance == pytest.approx(1e-4 * diag)  # noise-free: the floor of max(4 sigma, 1e-4 diag)
+    fits = d.extra["fits"]
+    assert sorted(fits) == list(range(len(d.parts)))
+    want = {"patch": "plane", "linear": "cylinder", "junction": "sphere"}
+    for p in d.parts:
+        assert fits[p.id].type == want[p.kind]
+        if p.kind != "patch":
+            assert fits[p.id].params["radius"] == pytest.approx(3.0, abs=1e-6)
+        faces = np.flatnonzero(d.labels == p.id)
+        assert np.abs(fits[p.id].distance(V[np.unique(F[faces])])).max() <= 2 * d.tolerance

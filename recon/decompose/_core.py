@@ -205,6 +205,7 @@ def decompose(
         )
         for i in range(len(kinds))
     )
+    fits = _part_fits(regions, labels, area, kinds)
     step("done", 1.0)
     log.info("decomposition: %s", {k: sum(p.kind == k for p in parts) for k in ("patch", "junction", "linear", "terminal")})
     return Decomposition(
@@ -217,6 +218,8 @@ def decompose(
         threshold=threshold,
         noise=ff.noise,
         critical=critical,
+        tolerance=float(regions.tolerance),
+        extra={"fits": fits},
     )
 
 
@@ -237,6 +240,38 @@ def _normal_angle(V, F, ff: FeatureField, smooth) -> float:
     cos = np.clip(np.abs(np.einsum("ij,ij->i", fn, sn)), 0.0, 1.0)
     med = float(np.median(np.arccos(cos[smooth]))) if smooth.any() else 0.0
     return max(np.deg2rad(MIN_ANGLE_DEG), ANGLE_NOISE_FACTOR * med)
+
+
+#: Share of a critical part's area one blend region must cover for the part to be given that blend's surface.
+BLEND_FIT_SHARE = 0.8
+
+
+def _part_fits(regions: Regions, labels, area, kinds) -> dict:
+    """{part id: SurfaceFit}: the region surface that covers most (≥ 80 %) of each part's area.
+
+    A patch is one non-blend region (plus absorbed orphans); a linear part or junction may lie on one blend.
+    Free-form regions carry no surface and give no entry.
+    """
+    k = len(regions.fits)
+    lab = regions.label
+    has = lab >= 0
+    n_parts = len(kinds)
+    key = labels[has] * np.int64(k) + lab[has]
+    w = np.bincount(key, weights=area[has], minlength=n_parts * k).reshape(n_parts, k)
+    tot = np.bincount(labels, weights=area, minlength=n_parts)
+    out = {}
+    if k == 0:
+        return out
+    best = w.argmax(axis=1)
+    for p in range(n_parts):
+        r = int(best[p])
+        fit = regions.fits[r]
+        if fit.type == "free" or not fit or w[p, r] < BLEND_FIT_SHARE * tot[p]:
+            continue
+        if (kinds[p] == "patch") == bool(regions.blend[r]):
+            continue  # a patch on a blend's surface (or the reverse) is not what was fitted for it
+        out[p] = fit
+    return out
 
 
 def _patch_ids(regions: Regions, area) -> np.ndarray:

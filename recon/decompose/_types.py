@@ -118,6 +118,15 @@ class Decomposition:
         Estimated vertex noise (mesh units).
     critical : (m,) bool
         Triangles of the critical region.
+    tolerance : float
+        Distance within which a triangle counted as lying on a patch's fitted surface (mesh units): the
+        fit-based tolerance ``max(4 σ, 1e-4 · diagonal)`` with σ measured on the fitted smooth faces, or the
+        ``tolerance`` given to :func:`decompose`.
+    extra : dict
+        ``"fits"``: {part id: SurfaceFit} — the analytic surface each patch was grown on, and, for a linear
+        part or junction that one blend surface covers (≥ 80 % of its area), that blend's surface. Free-form
+        patches (no analytic surface fits) have no entry; the fits are of the regions before orphans were
+        absorbed, so a caller that relabels triangles should refit.
     """
 
     labels: np.ndarray
@@ -129,6 +138,7 @@ class Decomposition:
     threshold: float
     noise: float
     critical: np.ndarray
+    tolerance: float = float("nan")
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def count(self, kind: str) -> int:
@@ -167,4 +177,5 @@ class Decomposition:
             "omega_min": self.omega_min,
             "threshold": self.threshold,
             "noise": self.noise,
+            "tolerance": self.tolerance,
         }
