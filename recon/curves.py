@@ -600,7 +600,11 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         egap.append(gap)
         out.append(pts)
         offs.append(offs[-1] + len(pts))
-        curves.append(fit_curve(pts, closed=bool(closed), tolerance=tolerance))
+        try:
+            curves.append(fit_curve(pts, closed=bool(closed), tolerance=tolerance))
+        except InputError as err:  # a degenerate edge (all its points coincide): the B-rep reports it
+            log.info("network_geometry: edge %d: %s", e, err)
+            curves.append(EdgeCurve("line", {"start": pts[0].copy(), "end": pts[-1].copy()}, float("inf")))
     return NetworkGeometry(points=points, vertex_gap=vgap, coords=np.concatenate(out) if out else np.empty((0, 3)),
                            offsets=np.asarray(offs, dtype=np.int64), edge_gap=np.asarray(egap),
                            curves=tuple(curves))

@@ -64,8 +64,10 @@ KIND_COLOURS = {
 class FaceRecord:
     """One B-rep face.
 
-    ``status`` is ``"ok"`` (its own surface), ``"filled"`` (fallback B-spline by MakeFilling) or
-    ``"failed"`` (no face: the shell has a hole there); ``face`` is the ``TopoDS_Face`` in the final shape.
+    ``status`` is ``"ok"`` (its own surface), ``"poor"`` (its own surface although the fit was not within
+    tolerance: nothing better could be built), ``"filled"`` (a MakeFilling B-spline through its boundary and
+    mesh points, trimmed by the shared edges), ``"filled-sewn"`` (MakeFilling's own face, joined by sewing)
+    or ``"failed"`` (no face: the shell has a hole there); ``face`` is the ``TopoDS_Face`` in the final shape.
     """
 
     part: int
@@ -238,6 +240,8 @@ def _wire(refs, edges, context=None):
     mk = BRepBuilderAPI_MakeWire()
     for r in refs:
         e = edges[abs(r) - 1]
+        if e is None:
+            raise BrepError(f"shared edge {abs(r) - 1} could not be built")
         e = e if r > 0 else TopoDS.Edge_s(e.Reversed())
         pieces = [e]
         if context is not None:
@@ -376,28 +380,92 @@ def face_problems(face) -> str:
     return "BRepCheck: " + (", ".join(f"{k} ×{v}" for k, v in sorted(counts.items())) or "invalid")
 
 
-def _filled_face(loops: list[np.ndarray], edges, points):
-    """Fallback: a B-spline face through the boundary edges and mesh points (BRepOffsetAPI_MakeFilling)."""
+def _checked_edges(loop, edges, context) -> list:
+    """The loop's current shared edges, each checked to have a 3D curve and two non-null vertices.
+
+    ``BRepOffsetAPI_MakeFilling`` dereferences edge vertices without checks: a null one there has killed
+    the whole process ("BRep_Tool:: TopoDS_Vertex hasn't gp_Pnt", then a segfault). Nothing unchecked
+    goes in.
+    """
+    out = []
+    wire = _wire(loop, edges, context)
+    exp = TopExp_Explorer(wire, TopAbs_EDGE)
+    while exp.More():
+        edge = TopoDS.Edge_s(exp.Current())
+        if edge.IsNull() or BRep_Tool.Degenerated_s(edge):
+            raise BrepError("a boundary edge is null or degenerate")
+        if not BRep_Tool.IsGeometric_s(edge):
+            raise BrepError("a boundary edge has no 3D curve")
+        for vtx in (TopExp.FirstVertex_s(edge), TopExp.LastVertex_s(edge)):
+            if vtx.IsNull() or vtx.TShape() is None:
+                raise BrepError("a boundary edge has a null vertex")
+        out.append(edge)
+        exp.Next()
+    if not out:
+        raise BrepError("the boundary loop has no edges")
+    return out
+
+
+def _filled_face(loops: list[np.ndarray], edges, points, context):
+    """Fallback: a B-spline face through the boundary edges and mesh points (BRepOffsetAPI_MakeFilling).
+
+    Returns the filled face and its surface; the caller trims that surface with the shared wires again
+    (so that the face keeps the network's edges) and keeps the filled face itself only if that fails.
+    """
     if len(loops) != 1:
-        raise BrepError("MakeFilling fallback needs a single boundary loop")
-    fill = BRepOffsetAPI_MakeFilling()
-    for r in loops[0]:
-        fill.Add(edges[abs(r) - 1], GeomAbs_Shape.GeomAbs_C0, True)
-    for p in points[:: max(1, len(points) // 16)]:
-        fill.Add(_pnt(p))
+        raise BrepError(f"MakeFilling fallback needs a single boundary loop, the part has {len(loops)}")
+    checked = _checked_edges(loops[0], edges, context)
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
     try:
+        fill = BRepOffsetAPI_MakeFilling()
+        for edge in checked:
+            fill.Add(edge, GeomAbs_Shape.GeomAbs_C0, True)
+        for p in pts[:: max(1, len(pts) // 16)]:
+            fill.Add(_pnt(p))
         fill.Build()
+        if not fill.IsDone():
+            raise BrepError("BRepOffsetAPI_MakeFilling failed")
+        shape = fill.Shape()
+        if shape.IsNull() or shape.ShapeType() != TopAbs_FACE:
+            raise BrepError("BRepOffsetAPI_MakeFilling returned no face")
+        face = TopoDS.Face_s(shape)
+        surface = BRep_Tool.Surface_s(face)
+    except BrepError:
+        raise
     except Exception as err:  # OCC raises Standard_Failure subclasses
         raise BrepError(f"BRepOffsetAPI_MakeFilling failed: {type(err).__name__}: {err}") from err
-    if not fill.IsDone():
-        raise BrepError("BRepOffsetAPI_MakeFilling failed")
-    face = TopoDS.Face_s(fill.Shape())
-    return face, abs(_area(face))
+    return face, surface
 
 
 # --------------------------------------------------------------------------------------------------
 # Solid
 # --------------------------------------------------------------------------------------------------
+
+
+def _fallback_face(loops, edges, points, normals, context):
+    """A filling surface through the part's boundary and points, trimmed by the shared wires if possible.
+
+    Returns ``(face or None, area, status, message)``; ``status`` is ``"filled"`` for a face on the filling
+    surface bounded by the network's own edges, ``"filled-sewn"`` for MakeFilling's own face (new edges,
+    joined to its neighbours by sewing), ``"failed"`` otherwise.
+    """
+    try:
+        filled, surface = _filled_face(loops, edges, points, context)
+    except BrepError as err:
+        return None, 0.0, "failed", str(err)
+    except Exception as err:  # noqa: BLE001  (an OCC failure outside the checked calls is still a record)
+        return None, 0.0, "failed", f"filling failed: {type(err).__name__}: {err}"
+    filling = SurfaceModel("bspline", surface)
+    try:
+        fvote = _orientation_vote(filling, points, normals)
+        face, area = _face_on_surface(filling, loops, edges, fvote, context)
+        return face, area, "filled", ""
+    except Exception as err:  # noqa: BLE001  (BrepError or an OCC failure: fall back to the filled face)
+        area = abs(_area(filled))
+        if not area > 0 or not BRepCheck_Analyzer(filled).IsValid():
+            return None, 0.0, "failed", f"the filling face is not valid either ({err})"
+        return filled, area, "filled-sewn", f"filling surface trimmed by the shared edges failed ({err})"
 
 
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
@@ -435,12 +503,21 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
             s = surfaces[p]
         except (KeyError, IndexError) as err:
             raise InputError(f"build_solid: `surfaces` has no surface for part {p}") from err
-        models[p] = surface_model(s).reframed(network.part_samples(p)[0])
+        try:
+            models[p] = surface_model(s).reframed(network.part_samples(p)[0])
+        except (InputError, BrepError) as err:
+            if bool(getattr(s, "ok", True)):
+                raise
+            # A failed fit without usable parameters: the part gets a filling face, or none.
+            log.info("part %d: no surface from its failed fit (%s)", p, err)
+            models[p] = None
     warnings: list[str] = []
     if len(network.nonmanifold):
         warnings.append(f"{len(network.nonmanifold)} non-manifold mesh edges were skipped")
 
     def project(part, pts):
+        if models[part] is None:  # no surface: the other surfaces place the network alone
+            return np.array(pts, dtype=np.float64), np.zeros_like(pts, dtype=np.float64)
         return models[part].project(pts)
 
     geo = network_geometry(network, project, tolerance=tolerance)
@@ -456,7 +533,12 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     edges = []
     for e in range(network.n_edges):
         a, b = network.edge_vertices[e]
-        edges.append(_make_edge(geo.curves[e], vertices[a], vertices[b], builder))
+        try:
+            edges.append(_make_edge(geo.curves[e], vertices[a], vertices[b], builder))
+        except BrepError as err:
+            # The faces that use it fail (as records); the rest of the solid is still built.
+            warnings.append(f"edge {e} between parts {network.edge_parts[e].tolist()}: {err}")
+            edges.append(None)
 
     open_mesh = bool(np.any(network.edge_parts[:, 1] == OUTSIDE))
     context = ShapeBuild_ReShape()
@@ -468,20 +550,38 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         name = f"{kind}_{p}"
         loops = [network.loop(j) for j in network.part_loops(p)]
         pts, nrm = network.part_samples(p)
-        vote = _orientation_vote(model, pts, nrm)
-        try:
-            face, area = _face_on_surface(model, loops, edges, vote, context)
-            status, msg = "ok", ""
-        except BrepError as err:
-            log.info("part %d (%s): %s; trying MakeFilling", p, model.kind, err)
+        fit_ok = model is not None and bool(getattr(surfaces[p], "ok", True))
+        vote = _orientation_vote(model, pts, nrm) if model is not None else 1
+        face, area, status, msg = None, 0.0, "failed", ""
+        if fit_ok:
             try:
-                face, area = _filled_face(loops, edges, pts)
-                status, msg = "filled", str(err)
-                warnings.append(f"{name}: {model.kind} face failed ({err}); replaced by a filling B-spline")
-            except BrepError as err2:
-                face, area, status, msg = None, 0.0, "failed", f"{err}; {err2}"
-                warnings.append(f"{name}: no face ({msg})")
-        records.append(FaceRecord(p, name, kind, model.kind, status, area, face, msg))
+                face, area = _face_on_surface(model, loops, edges, vote, context)
+                status = "ok"
+            except BrepError as err:
+                msg = str(err)
+                log.info("part %d (%s): %s; trying MakeFilling", p, model.kind, err)
+        else:
+            msg = "its fit is not within tolerance" if model is not None else "it has no fitted surface"
+        if face is None:
+            face, area, status, msg2 = _fallback_face(loops, edges, pts, nrm, context)
+            msg = "; ".join(m for m in (msg, msg2) if m)
+            if face is None:
+                if fit_ok or model is None:
+                    warnings.append(f"{name}: no face ({msg})")
+                else:
+                    # A poor surface still closes the solid better than a hole does.
+                    try:
+                        face, area = _face_on_surface(model, loops, edges, vote, context)
+                        status = "poor"
+                        warnings.append(f"{name}: {msg}; kept its out-of-tolerance {model.kind} face")
+                    except BrepError as err:
+                        msg = f"{msg}; {err}"
+                        warnings.append(f"{name}: no face ({msg})")
+            else:
+                warnings.append(f"{name}: own face failed ({msg}); replaced by a filling B-spline")
+        surface_type = model.kind if status in ("ok", "poor") else "bspline" if face is not None else (
+            model.kind if model is not None else "none")
+        records.append(FaceRecord(p, name, kind, surface_type, status, area, face, msg))
         if face is not None:
             faces.append(face)
 
@@ -544,7 +644,12 @@ def _assemble(faces, tolerance, open_mesh, warnings):
         shells.append(TopoDS.Shell_s(exp.Current()))
         exp.Next()
     if not shells:
-        raise BrepError("ShapeFix_Shell returned no shell")
+        warnings.append("ShapeFix_Shell returned no shell: the result is the loose faces")
+        comp = TopoDS_Compound()
+        builder.MakeCompound(comp)
+        for f in faces:
+            builder.Add(comp, f)
+        return comp
     if open_mesh:
         return shells[0] if len(shells) == 1 else fixed
     solids = []
@@ -555,12 +660,16 @@ def _assemble(faces, tolerance, open_mesh, warnings):
             continue
         mk = BRepBuilderAPI_MakeSolid(sh)
         if not mk.IsDone():
-            raise BrepError("BRepBuilderAPI_MakeSolid failed")
+            warnings.append("BRepBuilderAPI_MakeSolid failed: a closed shell is left as a shell")
+            solids.append(sh)
+            continue
         sf = ShapeFix_Solid(mk.Solid())
         sf.Perform()
         fixed_solid = sf.Solid()
-        if fixed_solid.ShapeType() != TopAbs_SOLID:
-            raise BrepError(f"ShapeFix_Solid returned a {fixed_solid.ShapeType()} instead of a solid")
+        if fixed_solid.IsNull() or fixed_solid.ShapeType() != TopAbs_SOLID:
+            warnings.append("ShapeFix_Solid returned no solid: a closed shell is left as a shell")
+            solids.append(sh)
+            continue
         solid = TopoDS.Solid_s(fixed_solid)
         if not BRepLib.OrientClosedSolid_s(solid):
             warnings.append("BRepLib.OrientClosedSolid could not orient the solid")
