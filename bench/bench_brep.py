@@ -1,132 +1,145 @@
-"""Benchmark the B-rep stage on the fixture parts: TRUE labels, surfaces from recon.fit, and TRUE surfaces.
+"""Benchmark the B-rep stage on the committed fixtures: TRUE labels, TRUE vs FITTED surfaces.
 
-For each part: curve network from the true labels, one ``recon.fit.fit_surface`` per part on its mesh
-points, ``build_solid``; reports validity, closedness, face count against the true count, volume error
-against the CAD original, face statuses, and time. The same with the TRUE surfaces as a control.
+For each part × variant: curve network from the fixture's true labels; surfaces either the true CAD
+surfaces (read from the fixture's STEP, face order = label) or one ``recon.fit.fit_surface`` per label
+(tolerance 1e-3 × diagonal on clean, max(4σ, 1e-3 × diagonal) on noisy variants, σ the fixture's noise);
+then ``build_solid``. Prints validity, face count against the truth, volume error against the STEP's volume,
+the p95 deviation (% of the diagonal) of the input mesh to the result and of the CLEAN mesh (the truth,
+without the noise) to the result, face statuses and the build time (best of ``--repeat``, warm).
 
-Run ``python bench/bench_brep.py [--parts box_fillet,plate_holes] [--variant clean] [--repeat 2]``.
-Uses ``recon.fixtures.load_fixture`` when it exists, else builds the parts with the fixture script's
-builders and tessellates them face by face (``recon.brep.labelled_tessellation``).
+Run ``python bench/bench_brep.py [--parts box_fillet,lofted] [--variants clean,noisy20] [--repeat 2]``; each
+part runs in its own process so that one kernel crash cannot hide the other rows.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib.util
+import json
 import logging
+import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-from recon.brep import build_solid, labelled_tessellation
-from recon.curves import curve_network
-
-ROOT = Path(__file__).resolve().parents[1]
 PARTS = ("box_fillet", "box_chamfer", "plate_holes", "revolved", "lofted", "prism", "pocket")
+VARIANTS = ("clean", "noisy20")
 
 
-def _builders():
-    spec = importlib.util.spec_from_file_location("make_fixtures", ROOT / "fixtures" / "make_fixtures.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def load_part(name: str, variant: str, deflection: float):
-    """vertices, faces, true labels, true surfaces (list by label), CAD volume."""
-    mod = _builders()
-    shape = getattr(mod, f"_{name}")()
-    v, f, lab, surfaces = labelled_tessellation(shape, deflection=deflection)
-    try:
-        from recon.fixtures import load_fixture  # noqa: F401  (the fixtures' meshes, once they land)
-
-        fx = load_fixture(name, variant)
-        v, f, lab = np.asarray(fx[0]), np.asarray(fx[1]), np.asarray(fx[2])
-    except Exception as err:  # fixtures not available: keep the direct tessellation
-        logging.getLogger(__name__).debug("load_fixture(%s): %s", name, err)
-    return v, f, lab, surfaces, shape.volume, len(shape.faces())
-
-
-def part_normals(v, f):
+def vertex_normals(v, f):
     tri = v[f]
     fn = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     vn = np.zeros_like(v)
     for k in range(3):
         np.add.at(vn, f[:, k], fn)
-    n = np.linalg.norm(vn, axis=1)
-    return vn / np.where(n > 0, n, 1)[:, None]
+    return vn / np.maximum(np.linalg.norm(vn, axis=1), 1e-300)[:, None]
 
 
 def fitted_surfaces(v, f, lab, *, tolerance):
+    import trimesh.remesh
+
     from recon.fit import fit_surface
 
+    vn = vertex_normals(v, f)
     fits = {}
     for p in np.unique(lab).tolist():
-        tris = f[lab == p]
-        ids, local = np.unique(tris, return_inverse=True)
-        local = local.reshape(-1, 3)
-        pts = v[ids]
-        while len(pts) < 16:  # a plane tessellated as two triangles: subdivide (exact on planes)
-            import trimesh.remesh
-
-            pts, local = trimesh.remesh.subdivide(pts, local)
-        nrm = part_normals(pts, local)
-        fits[p] = fit_surface(pts, nrm, tolerance=tolerance, faces=local)
+        ids, local = np.unique(f[lab == p], return_inverse=True)
+        pts, tris, nrm = v[ids], local.reshape(-1, 3), vn[ids]
+        while len(pts) < 16:  # a face tessellated with a handful of points: subdivide (exact on a plane)
+            pts, tris = trimesh.remesh.subdivide(pts, tris)
+            nrm = vertex_normals(pts, tris)
+        fits[p] = fit_surface(pts, nrm, tolerance=tolerance, faces=tris)
     return fits
 
 
-def run(name, variant, *, deflection, tolerance, repeat):
-    v, f, lab, true_surfaces, volume, n_true = load_part(name, variant, deflection)
+def true_surfaces(step_path):
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from recon.brep import read_step
+
+    shape, _ = read_step(step_path)
+    occ = getattr(shape, "wrapped", shape)
+    out = {}
+    exp = TopExp_Explorer(occ, TopAbs_FACE)
+    while exp.More():
+        out[len(out)] = BRep_Tool.Surface_s(TopoDS.Face_s(exp.Current()))
+        exp.Next()
+    return out
+
+
+def run_one(part, variant, source, repeat):
+    """One row as a dict (runs in a child process)."""
+    from recon.brep import build_solid
+    from recon.curves import curve_network
+    from recon.deviation import deviation
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture(part, variant)
+    clean = load_fixture(part, "clean")
+    v, f, lab = fx.vertices, fx.faces, fx.labels
+    sigma = float(fx.info.get("sigma", 0.0))
+    tol = max(4 * sigma, 1e-3 * fx.diagonal)
+    t0 = time.perf_counter()
+    surfaces = fitted_surfaces(v, f, lab, tolerance=tol) if source == "fitted" else true_surfaces(fx.step_path)
+    t_fit = time.perf_counter() - t0
     net = curve_network(v, f, lab)
-    rows = []
-    for label, surfaces_fn in (("true", lambda: dict(enumerate(true_surfaces))),
-                               ("fitted", lambda: fitted_surfaces(v, f, lab, tolerance=tolerance))):
+    times = []
+    for _ in range(repeat + 1):  # the first build pays the kernel's one-off start-up; not timed
         t0 = time.perf_counter()
-        surfaces = surfaces_fn()
-        t_fit = time.perf_counter() - t0
-        times = []
-        res = None
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            try:
-                res = build_solid(net, surfaces, tolerance=tolerance)
-            except Exception as err:  # a crash is a result here
-                res = err
-            times.append(time.perf_counter() - t0)
-        if isinstance(res, Exception):
-            rows.append((name, label, f"ERROR {type(res).__name__}: {res}"[:120]))
-            continue
-        val = res.validity
-        statuses = {}
-        for r in res.faces:
-            statuses[r.status] = statuses.get(r.status, 0) + 1
-        types = {}
-        for r in res.faces:
-            types[r.surface_type] = types.get(r.surface_type, 0) + 1
-        rows.append((name, label,
-                     f"ok={res.ok!s:5s} {val.shape_type:8s} valid={val.valid!s:5s} closed={val.closed!s:5s} free={val.free_edges:3d} "
-                     f"faces={val.n_faces:3d}/{n_true:<3d} dV={val.volume / volume - 1:+.2e} "
-                     f"status={statuses} types={types} build={min(times):.2f}s fit={t_fit:.2f}s "
-                     f"warn={len(res.warnings)}"))
-    return rows
+        res = build_solid(net, surfaces, tolerance=tol)
+        times.append(time.perf_counter() - t0)
+    val = res.validity
+    row = dict(part=part, variant=variant, surfaces=source, ok=bool(res.ok), type=val.shape_type, valid=val.valid,
+               closed=val.closed, faces=val.n_faces, true_faces=len(fx.true_faces),
+               dV=val.volume / fx.volume - 1, build=min(times[1:]) if repeat else times[0], fit=t_fit,
+               statuses={}, tol_pct=100 * tol / fx.diagonal)
+    for r in res.faces:
+        row["statuses"][r.status] = row["statuses"].get(r.status, 0) + 1
+    try:
+        dm = deviation(v, f, res.shape)
+        row["p95_mesh"] = dm.mesh_to_shape.pct(dm.mesh_to_shape.p95)
+        dc = deviation(clean.vertices, clean.faces, res.shape)
+        row["p95_truth"] = dc.mesh_to_shape.pct(dc.mesh_to_shape.p95)
+    except Exception as err:  # noqa: BLE001  (a shape the measurement cannot take is a result too)
+        row["p95_mesh"] = row["p95_truth"] = float("nan")
+        row["deviation_error"] = str(err)[:100]
+    return row
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--parts", default=",".join(PARTS))
-    ap.add_argument("--variant", default="clean")
-    ap.add_argument("--deflection", type=float, default=0.1)
-    ap.add_argument("--tolerance", type=float, default=0.05)
+    ap.add_argument("--variants", default=",".join(VARIANTS))
+    ap.add_argument("--surfaces", default="true,fitted")
     ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--child", nargs=3, metavar=("PART", "VARIANT", "SURFACES"), help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.ERROR)
-    print(f"# B-rep stage, variant={args.variant}, tolerance={args.tolerance}, true labels")
-    for name in args.parts.split(","):
-        for row in run(name, args.variant, deflection=args.deflection, tolerance=args.tolerance, repeat=args.repeat):
-            print(f"{row[0]:12s} {row[1]:6s} {row[2]}")
-            sys.stdout.flush()
+    if args.child:
+        print(json.dumps(run_one(*args.child, args.repeat)))
+        return
+    print("| part | variant | surfaces | ok | shape | valid | closed | faces | dV | p95 mesh % | p95 truth % | "
+          "statuses | build s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for part in args.parts.split(","):
+        for variant in args.variants.split(","):
+            for source in args.surfaces.split(","):
+                proc = subprocess.run([sys.executable, __file__, "--repeat", str(args.repeat), "--child", part, variant,
+                                       source], capture_output=True, text=True)
+                lines = proc.stdout.strip().splitlines()
+                if proc.returncode != 0 or not lines:
+                    print(f"| {part} | {variant} | {source} | CRASH rc={proc.returncode} "
+                          f"{proc.stderr.strip().splitlines()[-1:] } |")
+                    continue
+                r = json.loads(lines[-1])
+                st = ", ".join(f"{k} {n}" for k, n in sorted(r["statuses"].items()))
+                print(f"| {part} | {variant} | {source} | {r['ok']} | {r['type']} | {r['valid']} | {r['closed']} | "
+                      f"{r['faces']}/{r['true_faces']} | {r['dV']:+.1e} | {r['p95_mesh']:.3f} | {r['p95_truth']:.3f} | "
+                      f"{st} | {r['build']:.2f} |")
+                sys.stdout.flush()
 
 
 if __name__ == "__main__":
