@@ -80,6 +80,8 @@ SCALING_SIZES = (10_000, 100_000, 1_000_000, 2_000_000)
 SCALING_PART = "box_fillet"
 #: seconds per case, by group
 TIMEOUTS = {"fixtures": 900, "meshes": 1800, "freecad": 1800, "scaling": 7200}
+#: resident memory (MiB) above which a case's subprocess is killed (it shares the machine), by group
+MEMORY_LIMITS = {"fixtures": 8192, "meshes": 8192, "freecad": 8192, "scaling": 12288}
 #: the stages timed per case (``recon.pipeline.STAGES`` plus writing the STEP file)
 STAGES = ("load", "decompose", "fit", "brep", "deviation", "export")
 
@@ -113,7 +115,9 @@ COLUMNS = {
     "true_s2m_max": "true STEP -> mesh: max, % of diagonal",
     "true_s2m_p95": "true STEP -> mesh: 95th percentile, % of diagonal",
     "true_s2m_rms": "true STEP -> mesh: RMS, % of diagonal",
-    "valid": "a valid closed solid with volume > 0 (OpenCascade's check; FreeCAD's isValid for freecad rows)",
+    "expected": "solid (the mesh is closed) | shell (an open scan)",
+    "valid": "the expected result: a valid closed solid with volume > 0 from a closed mesh, a valid shell from an "
+    "open one (OpenCascade's check; FreeCAD's isValid and a solid for freecad rows)",
     "shape_type": "solid | shell | compound ...",
     "failed_faces": "parts that got no face of their own",
     "seconds": "seconds per stage: load, decompose, fit, brep, deviation, export (FreeCAD: its own stages)",
@@ -141,6 +145,8 @@ class Case:
         Plain JSON for the worker.
     timeout : float
         Seconds before the subprocess is killed.
+    max_memory_mb : float, optional
+        Resident memory (MiB) at which it is killed; default :data:`MEMORY_LIMITS` of its group.
     """
 
     name: str
@@ -148,6 +154,7 @@ class Case:
     kind: str
     spec: dict = field(default_factory=dict)
     timeout: float = 900.0
+    max_memory_mb: float | None = None
 
 
 @dataclass(frozen=True)
@@ -341,20 +348,26 @@ def run_case(case: Case, *, timeout: float | None = None, cwd=None) -> dict:
     with tempfile.TemporaryDirectory(prefix="recon-bench-") as tmp:
         tmp = Path(tmp)
         spec_path, result_path, err_path = tmp / "case.json", tmp / "result.json", tmp / "stderr.txt"
-        spec_path.write_text(json.dumps({"name": case.name, "group": case.group, "kind": case.kind, **case.spec}))
+        stage_path = tmp / "stage.txt"
+        spec_path.write_text(json.dumps({"name": case.name, "group": case.group, "kind": case.kind,
+                                         "stage_file": str(stage_path), **case.spec}))
+        mem_limit = case.max_memory_mb or MEMORY_LIMITS.get(case.group, 8192)
+        killed_for = None
         t0 = time.perf_counter()
         with open(err_path, "wb") as err:
             proc = subprocess.Popen(
                 [sys.executable, "-m", "recon.bench", "--worker", str(spec_path), str(result_path)],
                 stdin=subprocess.DEVNULL, stdout=err, stderr=err, cwd=str(cwd or tmp), start_new_session=True,
             )
-            timed_out = False
             while True:
                 pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
                 if pid:
                     break
                 if time.perf_counter() - t0 > limit:
-                    timed_out = True
+                    killed_for = f"no result within {limit:g} s: killed"
+                elif _pid_rss_mb(proc.pid) > mem_limit:
+                    killed_for = f"resident memory over {mem_limit:g} MiB: killed"
+                if killed_for:
                     os.killpg(proc.pid, signal.SIGKILL)  # the session we started: the worker and its children
                     pid, status, usage = os.wait4(proc.pid, 0)
                     break
@@ -362,15 +375,19 @@ def run_case(case: Case, *, timeout: float | None = None, cwd=None) -> dict:
             proc.returncode = os.waitstatus_to_exitcode(status)
         wall = time.perf_counter() - t0
         stderr_tail = err_path.read_text(errors="replace").strip().splitlines()[-5:]
-        if result_path.exists() and not timed_out:
+        stage = stage_path.read_text().strip() if stage_path.exists() else ""
+        where = f"in {stage}: " if stage else ""
+        if result_path.exists() and not killed_for:
             row.update(json.loads(result_path.read_text()))
-        elif timed_out:
-            row.update(status="timeout", error=f"no result within {limit:g} s: killed")
+        elif killed_for:
+            row.update(status="timeout" if "memory" not in killed_for else "crashed", error=where + killed_for)
         else:
             code = proc.returncode
             how = f"killed by signal {-code}" if code < 0 else f"exit code {code}"
+            if code == -signal.SIGKILL:
+                how += f" (peak {usage.ru_maxrss / 1024:.0f} MiB: out of memory?)"
             last = stderr_tail[-1] if stderr_tail else "no output"
-            row.update(status="crashed", error=_one_line(f"subprocess {how}: {last}"))
+            row.update(status="crashed", error=_one_line(f"{where}subprocess {how}; last log line: {last}"))
         if row["status"] in ("timeout", "crashed", "error"):
             row["stderr_tail"] = [_one_line(s) for s in stderr_tail]
         row["wall_seconds"] = round(wall, 3)
@@ -381,6 +398,14 @@ def run_case(case: Case, *, timeout: float | None = None, cwd=None) -> dict:
 
 # ----------------------------------------------------------------------------------------------------------------
 # The worker (runs inside the subprocess)
+
+
+def _pid_rss_mb(pid: int) -> float:
+    try:
+        with open(f"/proc/{pid}/statm") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except (OSError, ValueError, IndexError):
+        return 0.0
 
 
 def _rss_mb() -> float:
@@ -482,7 +507,10 @@ def _measure_convert(spec: dict, row: dict) -> dict:
         row["faces_true"] = len(fx.true_faces)
         row["types_true"] = _types_text(Counter(true_types))
     elif spec["kind"] == "scaling":
-        path = _scaling_mesh(int(spec["triangles"]))
+        path = _scaling_mesh_path(int(spec["triangles"]))
+        if not path.exists():  # made in a child process, so its memory and time stay out of this case's figures
+            subprocess.run([sys.executable, "-m", "recon.bench", "--make-scaling", str(spec["triangles"])],
+                           check=True, stdin=subprocess.DEVNULL, capture_output=True)
         true_labels_input = np.load(path.with_suffix(".labels.npy")).astype(np.int64)
         from .fixtures import FIXTURE_DIR
 
@@ -504,6 +532,8 @@ def _measure_convert(spec: dict, row: dict) -> dict:
     def progress(stage, fraction):
         current["stage"] = stage
         memory(stage, fraction)
+        if fraction == 0.0 and spec.get("stage_file"):  # so that a crash can be placed
+            Path(spec["stage_file"]).write_text(stage)
         if fraction == 0.0:
             started[stage] = time.perf_counter()
         elif fraction >= 1.0 and stage in started:
@@ -522,19 +552,24 @@ def _measure_convert(spec: dict, row: dict) -> dict:
     row["faces_ours"] = rep["n_faces"]
     row["types_ours"] = _types_text(rep["faces_by_type"])
     val = rep["validity"]
-    row["valid"] = bool(val["ok"])
+    row["expected"] = "solid" if conv.mesh.report.closed else "shell"
+    if row["expected"] == "solid":
+        row["valid"] = bool(val["ok"])
+    else:  # an open scan: a valid shell is the right answer
+        row["valid"] = bool(val["valid"]) and val["shape_type"] == "shell"
     row["shape_type"] = val["shape_type"]
     row["failed_faces"] = sum(1 for f in rep["faces"] if f["status"] == "failed")
     seconds = dict(rep["seconds"])
     if "deviation" in rep:
         row.update(_stats_pct(rep["deviation"]["mesh_to_shape"], "m2s"))
         row.update(_stats_pct(rep["deviation"]["shape_to_mesh"], "s2m"))
-    row["status"] = "ok" if conv.brep.ok else "invalid"
-    if not conv.brep.ok:
-        bad = [] if val["ok"] else [f"{val['shape_type']}, valid={val['valid']}, closed={val['closed']}"]
-        if row["failed_faces"]:
-            bad.append(f"{row['failed_faces']} failed faces")
-        row["error"] = _one_line("not a valid closed solid: " + "; ".join(bad) if bad else "faces lost in fixing")
+    lost = sum(1 for r in conv.brep.faces if r.status == "failed" or r.face is None)
+    row["status"] = "ok" if row["valid"] and not lost else "invalid"
+    if row["status"] == "invalid":
+        bad = [] if row["valid"] else [f"{val['shape_type']}, valid={val['valid']}, closed={val['closed']}"]
+        if lost:
+            bad.append(f"{lost} parts without a face")
+        row["error"] = _one_line(f"not a valid {row['expected']}: " + "; ".join(bad))
     notes = []
 
     from .brep import write_shape
@@ -628,10 +663,14 @@ def _load_make_fixtures():
     return mod
 
 
+def _scaling_mesh_path(triangles: int, *, folder: Path = SCALING_DIR) -> Path:
+    return folder / f"{SCALING_PART}_{_size_name(triangles)}.stl"
+
+
 def _scaling_mesh(triangles: int, *, folder: Path = SCALING_DIR) -> Path:
     """``box_fillet`` with about ``triangles`` triangles: the fixtures' remesher at n / 4^k, then k subdivisions
     with projection onto the true faces (k the least with n / 4^k ≤ 8000). Cached in ``folder``."""
-    path = folder / f"{SCALING_PART}_{_size_name(triangles)}.stl"
+    path = _scaling_mesh_path(triangles, folder=folder)
     if path.exists() and path.with_suffix(".labels.npy").exists():
         return path
     mf = _load_make_fixtures()
@@ -821,7 +860,7 @@ def headline_rows(rows) -> list[list[str]]:
 
 
 HEADLINE_HEADER = [
-    "cases", "n", "valid closed solids", "faces ours / true", "type agreement (median)", "faces recovered IoU≥0.5 "
+    "cases", "n", "valid results (solid; shell if open)", "faces ours / true", "type agreement (median)", "faces recovered IoU≥0.5 "
     "(median)", "mesh→shape p95 % diag (median)", "shape→mesh p95 % diag (median)", "mesh→true STEP p95 % (median)",
     "mesh→STEP s (median)", "peak MiB (max)",
 ]
@@ -1006,7 +1045,13 @@ def main(argv=None) -> int:
     parser.add_argument("--timeout", type=float, default=None, help="seconds per case (default: per group)")
     parser.add_argument("--merge", action="store_true", help="keep rows of other cases from OUT/bench.json")
     parser.add_argument("--worker", nargs=2, metavar=("SPEC", "RESULT"), help=argparse.SUPPRESS)
+    parser.add_argument("--make-scaling", type=int, metavar="TRIANGLES",
+                        help="only make (and cache) the scaling mesh of about this many triangles")
     args = parser.parse_args(argv)
+    if args.make_scaling:
+        logging.basicConfig(level=logging.INFO, format="%(message)s")
+        print(_scaling_mesh(args.make_scaling))
+        return 0
     if args.worker:
         logging.basicConfig(level=logging.WARNING, format="%(name)s: %(message)s")
         return _worker(*args.worker)

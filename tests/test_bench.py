@@ -41,11 +41,12 @@ def test_run_writes_both_files_and_failures_become_rows(tmp_path):
     bad.write_text("this is not a mesh\n")
     broken = Case("mesh/bad", "meshes", "mesh", {"path": str(bad)}, timeout=300)
     slow = Case("mesh/too-slow", "meshes", "mesh", {"path": str(bad)}, timeout=0.01)
-    res = run_benchmark([case, broken, slow], out=tmp_path / "out")
+    greedy = Case("mesh/too-big", "meshes", "mesh", {"path": str(bad)}, timeout=300, max_memory_mb=1)
+    res = run_benchmark([case, broken, slow, greedy], out=tmp_path / "out")
 
     data = json.loads(res.json_path.read_text())
     rows = {r["case"]: r for r in data["rows"]}
-    assert set(rows) == {"box_fillet/coarse", "mesh/bad", "mesh/too-slow"}
+    assert set(rows) == {"box_fillet/coarse", "mesh/bad", "mesh/too-slow", "mesh/too-big"}
     for r in rows.values():
         assert set(COLUMNS) <= set(r)
 
@@ -64,6 +65,8 @@ def test_run_writes_both_files_and_failures_become_rows(tmp_path):
     assert rows["mesh/bad"]["status"] == "error"
     assert rows["mesh/bad"]["error"].startswith("load:")
     assert rows["mesh/too-slow"]["status"] == "timeout"
+    assert rows["mesh/too-big"]["status"] == "crashed"  # a Python interpreter alone holds more than 1 MiB
+    assert "memory over 1 MiB" in rows["mesh/too-big"]["error"]
 
     md = res.md_path.read_text()
     assert "## Fixtures (ground truth)" in md and "| box_fillet/coarse |" in md
