@@ -156,3 +156,35 @@ def test_tolerance_and_fits_exposed(box):
             assert fits[p.id].params["radius"] == pytest.approx(3.0, abs=1e-6)
         faces = np.flatnonzero(d.labels == p.id)
         assert np.abs(fits[p.id].distance(V[np.unique(F[faces])])).max() <= 2 * d.tolerance
+
+
+@pytest.mark.parametrize("kind", ["sphere", "cylinder", "cone", "torus"])
+def test_closed_form_fits_recover_exact_surfaces(kind):
+    # points on a known surface patch (exact normals): the closed form alone is within 1e-6 of it
+    from importlib import import_module
+
+    qf = import_module("recon.decompose._quickfit")
+    rng = np.random.default_rng(7)
+    u, v = rng.uniform(0.2, 1.4, 200), rng.uniform(-0.6, 0.6, 200)
+    if kind == "sphere":
+        p = 5.0 * np.c_[np.cos(u) * np.cos(v), np.sin(u) * np.cos(v), np.sin(v)] + [1, 2, 3]
+        n = p - [1, 2, 3]
+    elif kind == "cylinder":
+        p = np.c_[4.0 * np.cos(u), 4.0 * np.sin(u), 3 * v]
+        n = np.c_[np.cos(u), np.sin(u), 0 * v]
+    elif kind == "cone":  # half-angle 0.5 rad, apex at the origin
+        h = 3.0 + 2 * v
+        p = np.c_[h * np.tan(0.5) * np.cos(u), h * np.tan(0.5) * np.sin(u), h]
+        n = np.c_[np.cos(0.5) * np.cos(u), np.cos(0.5) * np.sin(u), -np.sin(0.5) * np.ones_like(u)]
+    else:  # R = 6, r = 2
+        p = np.c_[(6 + 2 * np.cos(2 * v)) * np.cos(u), (6 + 2 * np.cos(2 * v)) * np.sin(u), 2 * np.sin(2 * v)]
+        n = np.c_[np.cos(2 * v) * np.cos(u), np.cos(2 * v) * np.sin(u), np.sin(2 * v)]
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    fit = qf.quick_fit(kind, p, n, 1e-6, refine=False)
+    assert fit is not None and fit.type == kind
+    assert fit.deviation["max"] < 1e-6
+    # the analytic normals agree with the true ones (up to sign)
+    assert np.abs(np.einsum("ij,ij->i", qf.surface_normals(fit, p), n)).min() > 1 - 1e-9
+    # a plane is not mistaken for a curved surface: the closed forms refuse it as degenerate
+    flat = np.c_[u, v, np.zeros_like(u)]
+    assert qf.quick_fit(kind, flat, np.tile([0.0, 0.0, 1.0], (200, 1)), 1e-3, refine=False) is None

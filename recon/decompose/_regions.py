@@ -32,6 +32,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
+from ._quickfit import quick_fit, surface_normals
 
 __all__ = ["Regions", "fitted_regions"]
 
@@ -51,6 +52,8 @@ MIN_SPLIT_COVER = 0.5
 CURVED = ("sphere", "cylinder")
 #: Distance tolerance of the patches' first growth into the critical region, in tolerances (4σ → 1.5σ).
 STRICT = 0.375
+#: Fits run on at most this many vertices (an even subset of a larger region).
+MAX_FIT_POINTS = 3000
 #: Border refinement passes.
 REFINE_PASSES = 4
 
@@ -90,64 +93,28 @@ class _Ctx:
         self.centroid = V[F].mean(axis=1)
 
 
-def _quick_reject(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> bool:
-    """True when the closed-form start of a sphere / cylinder fit is already far off (saves the refinement).
+def _fit(ctx: _Ctx, faces: np.ndarray, types=tuple(ANALYTIC_FITTERS), *, polish: bool = True) -> SurfaceFit | None:
+    """Simplest analytic surface through the vertices of ``faces`` within tolerance, or None (see :func:`quick_fit`).
 
-    Sphere: the linear fit ``|p|² = 2 c·p + k``; cylinder: the axis least orthogonal to the normals and a
-    linear circle fit across it. A seed straddling a sharp edge fails these by many tolerances.
-    """
-    q = pts - pts.mean(axis=0)
-    if kind == "sphere":
-        a = np.c_[2 * q, np.ones(len(q))]
-        sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
-        c, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
-        res = np.linalg.norm(q - c, axis=1) - np.sqrt(max(r2, 0.0))
-    elif kind == "cylinder":
-        axis = np.linalg.eigh(nrm.T @ nrm)[1][:, 0]
-        e1 = np.cross(axis, np.eye(3)[np.argmin(np.abs(axis))])
-        e1 /= np.linalg.norm(e1)
-        xy = np.c_[q @ e1, q @ np.cross(axis, e1)]
-        a = np.c_[2 * xy, np.ones(len(xy))]
-        sol = np.linalg.lstsq(a, (xy * xy).sum(axis=1), rcond=None)[0]
-        res = np.linalg.norm(xy - sol[:2], axis=1) - np.sqrt(max(sol[2] + sol[:2] @ sol[:2], 0.0))
-    else:
-        return False
-    return bool(np.percentile(np.abs(res), 90) > 3.0 * tol)
-
-
-def _fit(ctx: _Ctx, faces: np.ndarray, types=tuple(ANALYTIC_FITTERS), *, quick: bool = False) -> SurfaceFit | None:
-    """Simplest analytic surface through the vertices of ``faces`` within tolerance, or None.
-
-    ``quick``: skip types whose closed-form start is far off (for the many small seed discs).
+    ``polish``: refine by least squares even when the closed form is within tolerance (the final fits).
     """
     verts = np.unique(ctx.F[faces])
     if len(verts) < MIN_REGION_VERTICES:
         return None
+    if len(verts) > MAX_FIT_POINTS:  # an even subset: the surface is decided by far fewer points
+        verts = verts[:: -(-len(verts) // MAX_FIT_POINTS)]
     pts, nrm = ctx.V[verts], ctx.vn[verts]
     for kind in ANALYTIC_FITTERS:
-        if kind not in types:
-            continue
-        if quick and _quick_reject(kind, pts, nrm, ctx.tol):
-            continue
-        try:
-            fit = ANALYTIC_FITTERS[kind](pts, nrm, tolerance=ctx.tol)
-        except (FitError, np.linalg.LinAlgError, ValueError):
-            continue
-        if fit:
-            return fit
+        if kind in types:
+            fit = quick_fit(kind, pts, nrm, ctx.tol, polish=polish)
+            if fit is not None:
+                return fit
     return None
 
 
-def _normals_at(fit: SurfaceFit, pts: np.ndarray, eps: float) -> np.ndarray:
-    """(n, 3) unit normals of the fitted surface at (near) ``pts``: gradient of its signed distance."""
-    if fit.type == "plane":
-        return np.broadcast_to(np.asarray(fit.params["normal"], float), pts.shape)
-    g = np.empty_like(pts)
-    for k in range(3):
-        d = np.zeros(3)
-        d[k] = eps
-        g[:, k] = fit.distance(pts + d) - fit.distance(pts - d)
-    return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
+def _normals_at(fit: SurfaceFit, pts: np.ndarray, eps: float = 0.0) -> np.ndarray:
+    """(n, 3) unit normals of the fitted surface at (near) ``pts``."""
+    return surface_normals(fit, pts)
 
 
 def _error(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray, *, strict: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -175,7 +142,7 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     total = sum(len(f) for f in comp_faces)
     used = 0
     for faces in comp_faces[:8]:
-        fit = _fit(ctx, faces)
+        fit = _fit(ctx, faces, polish=True)
         if fit is not None:
             res.append(fit.distance(ctx.V[np.unique(ctx.F[faces])]))
         used += len(faces)
@@ -209,7 +176,7 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
             if size == fitted_size:
                 break
             region = np.flatnonzero(inreg)
-            new = _fit(ctx, region, (fit.type,)) or _fit(ctx, region)
+            new = _fit(ctx, region, (fit.type,), polish=True) or _fit(ctx, region, polish=True)
             fitted_size = size
             if new is not None:
                 fit = new
@@ -248,11 +215,12 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         tried[nb[nb >= 0]] = True
         if "plane" not in types and _fit(ctx, core, ("plane",)) is not None:
             continue  # flat: not the curved surface looked for (a huge radius would fit it too)
-        fit = _fit(ctx, core, types, quick=True)
+        fit = _fit(ctx, core, types)
         if fit is None:
             continue
         faces, fit = _grow_one(ctx, core, fit, free)
         if area[faces].sum() < min_area:
+            tried[faces] = True  # a seed inside would grow the same small region again
             continue
         free[faces] = False
         tried[faces] = True
@@ -318,7 +286,7 @@ def _refit(ctx: _Ctx, label: np.ndarray, fits: list) -> list:
             continue
         faces = np.flatnonzero(label == r)
         if len(faces):
-            new = _fit(ctx, faces, (fit.type,))
+            new = _fit(ctx, faces, (fit.type,), polish=True)
             if new is not None:
                 out[r] = new
     return out
@@ -341,7 +309,7 @@ def _merge(ctx: _Ctx, label: np.ndarray, fits: list):
                 continue
             tried.add((ra, rb))
             union = np.flatnonzero((label == ra) | (label == rb))
-            fit = _fit(ctx, union, (fits[ra].type,))
+            fit = _fit(ctx, union, (fits[ra].type,), polish=True)
             if fit is not None:
                 label[label == rb] = ra
                 fits[ra] = fit

@@ -1,0 +1,240 @@
+"""Closed-form analytic surface fits and surface normals, for the many small fits of region growing.
+
+:mod:`recon.fit` refines every fit by robust least squares (``scipy.optimize.least_squares``), which costs
+milliseconds per call; region growing makes thousands of fits, most of them on small seed discs or on regions
+that changed by a few rings. The closed-form *starts* of those fitters (the same constructions, see
+:mod:`recon.fit._primitives`) are already within tolerance on most such point sets, so :func:`quick_fit` tries
+them first and runs the least-squares fitter only when the closed form comes close (90th percentile of |d|
+within :data:`NEAR` tolerances) without being within tolerance:
+
+- plane: PCA;
+- sphere: the algebraic fit ``|p|² = 2 c·p + k`` (Kåsa), then Gauss–Newton steps on the geometric distance;
+- cylinder: axis = least-orthogonal direction to the normals, circle fit across it, then Gauss–Newton steps;
+- cone: the apex lies on every tangent plane (``n·a = n·p``), the axis is the normal of the plane fitted to the
+  unit vectors from the apex;
+- torus: the axis is the line meeting all normal lines (Plücker coordinates, linear), then a circle fit in the
+  (ρ, z) half-plane.
+
+Degenerate results are refused with the fitters' rules (sagitta below the tolerance: the simpler type fits).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import FitError
+from ..fit import SurfaceFit
+from ..fit._select import ANALYTIC_FITTERS
+from ..fit._types import deviation_stats, within_tolerance
+
+__all__ = ["quick_fit", "surface_normals", "closed_form"]
+
+#: A closed form whose 90th percentile of |d| is within this many tolerances is refined by least squares; the
+#: cone's and torus's starts (apex, axis from the normals) are less accurate on small or faceted patches.
+NEAR = {"plane": 3.0, "sphere": 3.0, "cylinder": 3.0, "cone": 3.0, "torus": 3.0}
+#: Gauss–Newton steps polishing the sphere's and the cylinder's closed form.
+GN_STEPS = 2
+#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
+HUGE = 1e3
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
+
+
+def _frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    e1 = np.cross(d, np.eye(3)[int(np.argmin(np.abs(d)))])
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(d, e1)
+
+
+def _circle(xy: np.ndarray):
+    """Kåsa circle fit; (centre (2,), radius) or None."""
+    m = xy.mean(axis=0)
+    q = xy - m
+    a = np.c_[2 * q, np.ones(len(q))]
+    sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
+    r2 = sol[2] + sol[:2] @ sol[:2]
+    if not np.isfinite(r2) or r2 <= 0:
+        return None
+    return sol[:2] + m, float(np.sqrt(r2))
+
+
+def _sphere_gauss_newton(q, c, r, steps=GN_STEPS):
+    """Gauss–Newton steps on the geometric residual |q − c| − r from the algebraic start."""
+    for _ in range(steps):
+        w = q - c
+        dist = np.maximum(np.linalg.norm(w, axis=1), 1e-300)
+        jac = np.c_[-w / dist[:, None], -np.ones(len(q))]
+        step = np.linalg.lstsq(jac, -(dist - r), rcond=None)[0]
+        c, r = c + step[:3], r + step[3]
+    return c, abs(float(r))
+
+
+def _cylinder_gauss_newton(q, c, d, r, steps=GN_STEPS):
+    """Gauss–Newton steps on the distance to the axis minus the radius (axis tilted in its normal plane).
+
+    The normals give the axis only as well as they are smoothed; the positions pin it down.
+    """
+    for _ in range(steps):
+        e1, e2 = _frame(d)
+        w = q - c
+        h = w @ d
+        radial = w - h[:, None] * d
+        rho = np.maximum(np.linalg.norm(radial, axis=1), 1e-300)
+        u = radial / rho[:, None]
+        k = -h / rho
+        jac = np.c_[k * (w @ e1), k * (w @ e2), -(u @ e1), -(u @ e2), -np.ones(len(q))]
+        step = np.linalg.lstsq(jac, -(rho - r), rcond=None)[0]
+        d = d + step[0] * e1 + step[1] * e2
+        d /= np.linalg.norm(d)
+        c = c + step[2] * e1 + step[3] * e2
+        r = r + step[4]
+    return c, d, abs(float(r))
+
+
+def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict | None:
+    """Parameters (as in :class:`recon.fit.SurfaceFit`) of the closed-form fit of ``kind``, or None if degenerate.
+
+    Parameters
+    ----------
+    kind : str
+        ``"plane"``, ``"sphere"``, ``"cylinder"``, ``"cone"`` or ``"torus"``.
+    pts, nrm : (n, 3) float
+        Points and unit normals (any sign).
+    tol : float
+        Distance tolerance (decides degeneracy: a sagitta below it means the simpler type).
+    """
+    mean = pts.mean(axis=0)
+    q = pts - mean
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    if kind == "plane":
+        normal = np.linalg.eigh(q.T @ q)[1][:, 0]
+        return {"origin": mean.tolist(), "normal": normal.tolist()}
+    if kind == "sphere":
+        a = np.c_[2 * q, np.ones(len(q))]
+        sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
+        r2 = sol[3] + sol[:3] @ sol[:3]
+        if not np.isfinite(r2) or r2 <= 0:
+            return None
+        c, r = _sphere_gauss_newton(q, sol[:3], float(np.sqrt(r2)))
+        if not np.isfinite(r) or r > HUGE * size or size * size / (8 * r) < tol:
+            return None
+        return {"center": (c + mean).tolist(), "radius": r}
+    if kind == "cylinder":
+        d = np.linalg.eigh(nrm.T @ nrm)[1][:, 0]
+        e1, e2 = _frame(d)
+        c = _circle(np.c_[q @ e1, q @ e2])
+        if c is None or c[1] > HUGE * size or size * size / (8 * c[1]) < tol:
+            return None
+        centre, d, r = _cylinder_gauss_newton(q, c[0][0] * e1 + c[0][1] * e2, d, c[1])
+        if not np.isfinite(r) or r > HUGE * size or size * size / (8 * r) < tol:
+            return None
+        return {"axis_point": (centre + mean).tolist(), "axis_dir": d.tolist(), "radius": r}
+    if kind == "cone":
+        m = nrm.T @ nrm
+        ev = np.linalg.eigvalsh(m)
+        if not ev[0] > 1e-6 * ev[-1]:
+            return None
+        apex = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
+        if np.linalg.norm(apex) > HUGE * size:
+            return None
+        u = _unit_rows(q - apex)
+        d = np.linalg.eigh(np.cov(u.T))[1][:, 0]
+        if np.mean(u @ d) < 0:
+            d = -d
+        alpha = float(np.arccos(np.clip(np.mean(u @ d), -1.0, 1.0)))
+        h = (q - apex) @ d
+        if alpha < np.deg2rad(0.5) or alpha > np.pi / 2 - np.deg2rad(0.5) or np.median(h) <= 0:
+            return None
+        if (h.max() - h.min()) * np.tan(alpha) < tol:
+            return None  # the radius hardly changes: a cylinder
+        hm = float(h.mean())
+        apex = apex + mean
+        return {
+            "apex": apex.tolist(), "axis_dir": d.tolist(), "half_angle": alpha,
+            "ref_point": (apex + hm * d).tolist(), "ref_radius": float(hm * np.tan(alpha)),
+        }
+    if kind == "torus":
+        s = np.sqrt(np.mean((q * q).sum(axis=1)))
+        a = np.c_[np.cross(q / s, nrm), nrm]
+        vec = np.linalg.eigh(a.T @ a)[1][:, 0]
+        d, mom = vec[:3], vec[3:]
+        nd = np.linalg.norm(d)
+        if nd < 1e-6:
+            return None
+        d, mom = d / nd, mom / nd
+        mom = mom - (mom @ d) * d
+        c0 = np.cross(d, mom) * s
+        w = q - c0
+        h = w @ d
+        rho = np.sqrt(np.maximum((w * w).sum(axis=1) - h * h, 0.0))
+        c = _circle(np.c_[rho, h])
+        if c is None:
+            return None
+        (big, z0), small = c
+        if big < max(1e-3 * size, tol) or big > HUGE * size or size * size / (8 * big) < tol:
+            return None
+        if small <= 0 or small > HUGE * size or big < small:
+            return None
+        return {"center": (c0 + z0 * d + mean).tolist(), "axis_dir": d.tolist(),
+                "major_radius": float(big), "minor_radius": float(small)}
+    raise FitError(f"unknown surface type {kind!r}")
+
+
+def quick_fit(
+    kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float, *, refine: bool = True, polish: bool = False
+) -> SurfaceFit | None:
+    """The surface of ``kind`` through ``pts`` within ``tol`` (closed form, else least squares when near), or None.
+
+    Parameters
+    ----------
+    kind : str
+    pts, nrm : (n, 3) float
+    tol : float
+    refine : bool
+        Run the least-squares fitter when the closed form is near but not within tolerance.
+    polish : bool
+        Run the least-squares fitter also when the closed form is within tolerance (a final fit: the
+        closed form of a noisy region is a little off, and growing compares distances to it).
+    """
+    params = closed_form(kind, pts, nrm, tol)
+    if params is not None:
+        fit = SurfaceFit(kind, params, {}, len(pts))
+        dev = deviation_stats(fit.distance(pts))
+        if within_tolerance(dev, tol) and not polish:
+            return SurfaceFit(kind, params, dev, len(pts))
+        if not refine or np.percentile(np.abs(fit.distance(pts)), 90) > NEAR[kind] * tol:
+            return None
+    elif not refine:
+        return None
+    try:
+        fit = ANALYTIC_FITTERS[kind](pts, nrm, tolerance=tol)
+    except (FitError, np.linalg.LinAlgError, ValueError):
+        return None
+    return fit if fit else None
+
+
+def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:
+    """(n, 3) unit normals of the fitted analytic surface at its points nearest ``pts`` (n, 3) (any sign)."""
+    p = fit.params
+    if fit.type == "plane":
+        return np.broadcast_to(np.asarray(p["normal"], float), pts.shape)
+    if fit.type == "sphere":
+        return _unit_rows(pts - np.asarray(p["center"]))
+    if fit.type in ("cylinder", "cone", "torus"):
+        d = np.asarray(p["axis_dir"], float)
+        d = d / np.linalg.norm(d)
+        origin = np.asarray(p["axis_point"] if fit.type == "cylinder" else p["apex"] if fit.type == "cone" else p["center"])
+        w = pts - origin
+        h = w @ d
+        radial = w - h[:, None] * d
+        u = _unit_rows(radial)
+        if fit.type == "cylinder":
+            return u
+        if fit.type == "cone":
+            a = float(p["half_angle"])
+            return np.cos(a) * u - np.sin(a) * d
+        tube = origin + float(p["major_radius"]) * u
+        return _unit_rows(pts - tube)
+    raise FitError(f"no analytic normals for a {fit.type!r} surface")
