@@ -199,20 +199,23 @@ def quick_fit(
         closed form of a noisy region is a little off, and growing compares distances to it).
     """
     params = closed_form(kind, pts, nrm, tol)
+    start = None
     if params is not None:
-        fit = SurfaceFit(kind, params, {}, len(pts))
-        dev = deviation_stats(fit.distance(pts))
-        if within_tolerance(dev, tol) and not polish:
-            return SurfaceFit(kind, params, dev, len(pts))
-        if not refine or np.percentile(np.abs(fit.distance(pts)), 90) > NEAR[kind] * tol:
+        d = np.abs(SurfaceFit(kind, params, {}, len(pts)).distance(pts))
+        dev = deviation_stats(d)
+        if within_tolerance(dev, tol):
+            start = SurfaceFit(kind, params, dev, len(pts))
+            if not polish:
+                return start
+        elif not refine or np.percentile(d, 90) > NEAR[kind] * tol:
             return None
     elif not refine:
         return None
     try:
         fit = ANALYTIC_FITTERS[kind](pts, nrm, tolerance=tol)
     except (FitError, np.linalg.LinAlgError, ValueError):
-        return None
-    return fit if fit else None
+        return start
+    return fit if fit else start
 
 
 def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:

@@ -93,10 +93,13 @@ class _Ctx:
         self.centroid = V[F].mean(axis=1)
 
 
-def _fit(ctx: _Ctx, faces: np.ndarray, types=tuple(ANALYTIC_FITTERS), *, polish: bool = True) -> SurfaceFit | None:
+def _fit(
+    ctx: _Ctx, faces: np.ndarray, types=tuple(ANALYTIC_FITTERS), *, polish: bool = True, refine: bool = True
+) -> SurfaceFit | None:
     """Simplest analytic surface through the vertices of ``faces`` within tolerance, or None (see :func:`quick_fit`).
 
-    ``polish``: refine by least squares even when the closed form is within tolerance (the final fits).
+    ``polish``: refine by least squares when the closed form is within tolerance; ``refine``: also when it is
+    near (off for the many seed discs: a closed form that misses a seed disc is no reason to spend a fit).
     """
     verts = np.unique(ctx.F[faces])
     if len(verts) < MIN_REGION_VERTICES:
@@ -106,7 +109,7 @@ def _fit(ctx: _Ctx, faces: np.ndarray, types=tuple(ANALYTIC_FITTERS), *, polish:
     pts, nrm = ctx.V[verts], ctx.vn[verts]
     for kind in ANALYTIC_FITTERS:
         if kind in types:
-            fit = quick_fit(kind, pts, nrm, ctx.tol, polish=polish)
+            fit = quick_fit(kind, pts, nrm, ctx.tol, polish=polish, refine=refine)
             if fit is not None:
                 return fit
     return None
@@ -213,9 +216,9 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         tried[core] = True  # a failed seed is not retried from inside its own disc (nor right next to it)
         nb = ctx.adj[core].ravel()
         tried[nb[nb >= 0]] = True
-        if "plane" not in types and _fit(ctx, core, ("plane",)) is not None:
+        if "plane" not in types and _fit(ctx, core, ("plane",), polish=False, refine=False) is not None:
             continue  # flat: not the curved surface looked for (a huge radius would fit it too)
-        fit = _fit(ctx, core, types)
+        fit = _fit(ctx, core, types, refine=False)
         if fit is None:
             continue
         faces, fit = _grow_one(ctx, core, fit, free)
