@@ -199,14 +199,12 @@ def quick_fit(
         closed form of a noisy region is a little off, and growing compares distances to it).
     """
     params = closed_form(kind, pts, nrm, tol)
-    start = None
     if params is not None:
         d = np.abs(SurfaceFit(kind, params, {}, len(pts)).distance(pts))
         dev = deviation_stats(d)
         if within_tolerance(dev, tol):
-            start = SurfaceFit(kind, params, dev, len(pts))
             if not polish:
-                return start
+                return SurfaceFit(kind, params, dev, len(pts))
         elif not refine or np.percentile(d, 90) > NEAR[kind] * tol:
             return None
     elif not refine:
@@ -214,8 +212,10 @@ def quick_fit(
     try:
         fit = ANALYTIC_FITTERS[kind](pts, nrm, tolerance=tol)
     except (FitError, np.linalg.LinAlgError, ValueError):
-        return start
-    return fit if fit else start
+        return None
+    # the fitter's verdict stands even against a closed form within tolerance: it also refuses degenerate
+    # surfaces (a cone no better than a cylinder, a sphere of a plane's sagitta)
+    return fit if fit else None
 
 
 def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:
