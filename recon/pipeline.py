@@ -28,6 +28,9 @@ log = logging.getLogger(__name__)
 #: The stages in the order they run; progress callbacks receive these names.
 STAGES = ("load", "decompose", "fit", "brep", "deviation")
 
+#: A feature part whose area lies this much within tolerance of its neighbouring patches' surfaces is a sharp edge.
+EXPLAINED_SHARE = 0.9
+
 #: A part needs this many distinct vertices to carry a surface of its own (``fit_surface`` needs 16).
 MIN_PART_VERTICES = 16
 
@@ -107,46 +110,54 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
     """The label of the B-rep face every triangle will belong to.
 
     A sharp linear part or junction yields no face: its edge (or vertex) is where its neighbours' surfaces
-    meet. So each of its triangles goes to the neighbouring patch whose fitted surface passes closest to the
-    triangle's centroid — the patch it really lies on (for a junction, the patches next to its neighbours
-    count too). Parts too small to carry a surface of their own (fewer than :data:`MIN_PART_VERTICES`
-    vertices) join the part they touch most. A label whose triangles fell apart becomes one label per
-    connected piece. Labels are renumbered 0..k−1 in order of first appearance, so they are deterministic.
+    meet. A part counts as sharp when the decomposition says so, or when its neighbouring patches' fitted
+    surfaces explain it: at least :data:`EXPLAINED_SHARE` of its area lies within ``tolerance`` of one of
+    them (a strip that noise widened around a sharp edge; a true fillet bulges away from both faces by
+    more than that). Each triangle of a sharp part goes to the patch whose surface passes closest to its
+    centroid — the face it really lies on (for a junction, the patches next to its neighbours count too).
+    Parts too small to carry a surface of their own (fewer than :data:`MIN_PART_VERTICES` vertices) join
+    the part they touch most. A label whose triangles fell apart becomes one label per connected piece.
+    Labels are renumbered 0..k−1 in order of first appearance, so they are deterministic.
     """
     labels = np.asarray(dec.labels, dtype=np.int64).copy()
     pairs = _faces_adjacency(mesh)
     parts = dec.parts
     is_patch = np.array([p.kind == "patch" for p in parts], dtype=bool)
-    dissolve = [p.id for p in parts if p.kind != "patch" and p.sharp]
-    if dissolve:
-        wanted = set()
+    features = [p.id for p in parts if p.kind != "patch"]
+    if features:
         candidates = {}
-        for pid in dissolve:
+        for pid in features:
             near = {n for n in parts[pid].neighbours if is_patch[n]}
-            if not near:
-                near = {m for n in parts[pid].neighbours for m in parts[n].neighbours if is_patch[m]}
+            if not near or parts[pid].kind == "junction":
+                near |= {m for n in parts[pid].neighbours for m in parts[n].neighbours if is_patch[m]}
             candidates[pid] = sorted(near)
-            wanted.update(near)
-        patch_fits = _fit_parts(mesh, labels, tolerance=tolerance, only=sorted(wanted))
+        wanted = sorted(set().union(*candidates.values()))
+        patch_fits = _fit_parts(mesh, labels, tolerance=tolerance, only=wanted) if wanted else {}
         centroids = mesh.face_centroids
-        for pid in dissolve:
+        areas = mesh.face_areas
+        dissolved = []
+        for pid in features:
             cands = [c for c in candidates[pid] if patch_fits[c].params]
             if not cands:
                 continue
             tris = np.flatnonzero(labels == pid)
             d = np.stack([np.abs(patch_fits[c].distance(centroids[tris])) for c in cands])
-            labels[tris] = np.asarray(cands)[np.argmin(d, axis=0)]
-        leftover = np.isin(labels, [pid for pid in dissolve])
-        labels = _absorb(labels, pairs, leftover)
-    # Parts too small for a surface of their own.
-    for _ in range(3):
+            nearest = d.min(axis=0)
+            explained = areas[tris][nearest <= tolerance].sum() / max(areas[tris].sum(), 1e-300)
+            if parts[pid].sharp or explained >= EXPLAINED_SHARE:
+                labels[tris] = np.asarray(cands)[np.argmin(d, axis=0)]
+                dissolved.append(pid)
+        log.info("%d of %d feature parts are sharp: their triangles went to the patches", len(dissolved), len(features))
+        labels = _absorb(labels, pairs, np.isin(labels, dissolved))
+    # A label that fell apart into several connected pieces is one face per piece; pieces too small to carry a
+    # surface of their own join the part they touch most.
+    for _ in range(4):
+        labels = _split_disconnected(labels, pairs)
         nverts = _vertex_counts(mesh.faces, labels)
         small = nverts[labels] < MIN_PART_VERTICES
         if not small.any() or small.all():
             break
         labels = _absorb(labels, pairs, small)
-    # A label that fell apart into several connected pieces: each piece is its own face.
-    labels = _split_disconnected(labels, pairs)
     _, first = np.unique(labels, return_index=True)
     order = np.argsort(first)
     remap = np.empty(labels.max() + 1, dtype=np.int64)
@@ -255,8 +266,8 @@ def convert(
     step("decompose", 1.0)
 
     if tolerance is None:
-        tolerance = max(4.0 * float(dec.noise), 1e-4 * mesh.diagonal)
-        log.info("tolerance %.4g (from noise %.3g)", tolerance, dec.noise)
+        tolerance = getattr(dec, "tolerance", None) or max(4.0 * float(dec.noise), 1e-4 * mesh.diagonal)
+        log.info("tolerance %.4g", tolerance)
     elif not tolerance > 0:
         raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")
 

@@ -12,6 +12,8 @@ points as constraints; a shell that still is not closed is sewn as a last resort
 from __future__ import annotations
 
 import logging
+import os
+import tempfile
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -30,6 +32,7 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.BRepLib import BRepLib
 from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeFilling
+from OCP.BRepTools import BRepTools
 from OCP.Geom import Geom_BSplineCurve, Geom_Circle
 from OCP.GeomAbs import GeomAbs_Shape
 from OCP.GProp import GProp_GProps
@@ -41,7 +44,7 @@ from OCP.TColgp import TColgp_Array1OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID, TopAbs_VERTEX, TopAbs_WIRE
 from OCP.TopExp import TopExp, TopExp_Explorer
-from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shell
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shape, TopoDS_Shell
 
 from ..curves import OUTSIDE, CurveNetwork, EdgeCurve, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
@@ -438,6 +441,50 @@ def _filled_face(loops: list[np.ndarray], edges, points, context):
     return face, surface
 
 
+def _isolated_filled_face(loops, edges, points, context):
+    """:func:`_filled_face` in a forked child process.
+
+    ``BRepOffsetAPI_MakeFilling`` can crash the whole process (a segmentation fault inside GeomPlate on
+    noisy boundaries, seen on the box_fillet noisy20 fixture) where no exception can be caught. In a child
+    the crash costs one face, not the user's session: the face comes back through a BREP file.
+    """
+    if not hasattr(os, "fork"):
+        return _filled_face(loops, edges, points, context)
+    fd, path = tempfile.mkstemp(suffix=".brep", prefix="recon_fill_")
+    os.close(fd)
+    try:
+        pid = os.fork()
+        if pid == 0:  # child: compute, write, leave without running the parent's cleanup
+            code = 3
+            try:
+                face, _ = _filled_face(loops, edges, points, context)
+                code = 0 if BRepTools.Write_s(face, path) else 3
+            except BrepError as err:
+                with open(path, "w") as fh:
+                    fh.write(str(err))
+                code = 2
+            except BaseException:  # noqa: BLE001
+                code = 3
+            finally:
+                os._exit(code)
+        _, status = os.waitpid(pid, 0)
+        if os.WIFSIGNALED(status):
+            raise BrepError(f"BRepOffsetAPI_MakeFilling crashed (signal {os.WTERMSIG(status)}); the part has no face")
+        code = os.WEXITSTATUS(status)
+        if code == 2:
+            with open(path) as fh:
+                raise BrepError(fh.read())
+        if code != 0:
+            raise BrepError("BRepOffsetAPI_MakeFilling failed")
+        shape = TopoDS_Shape()
+        if not BRepTools.Read_s(shape, path, BRep_Builder()) or shape.IsNull() or shape.ShapeType() != TopAbs_FACE:
+            raise BrepError("BRepOffsetAPI_MakeFilling returned no face")
+        face = TopoDS.Face_s(shape)
+        return face, BRep_Tool.Surface_s(face)
+    finally:
+        os.unlink(path)
+
+
 # --------------------------------------------------------------------------------------------------
 # Solid
 # --------------------------------------------------------------------------------------------------
@@ -451,7 +498,7 @@ def _fallback_face(loops, edges, points, normals, context):
     joined to its neighbours by sewing), ``"failed"`` otherwise.
     """
     try:
-        filled, surface = _filled_face(loops, edges, points, context)
+        filled, surface = _isolated_filled_face(loops, edges, points, context)
     except BrepError as err:
         return None, 0.0, "failed", str(err)
     except Exception as err:  # noqa: BLE001  (an OCC failure outside the checked calls is still a record)
