@@ -231,3 +231,35 @@ def test_fixture_true_labels_fitted_surfaces(part, variant):
     assert all(r.status == "ok" for r in res.faces)
     # Volume: clean fits are exact to ~1e-6; noise of sigma on a part of area A moves it by ~sigma * A / sqrt(n).
     assert res.validity.volume == pytest.approx(fx.volume, rel=1e-5 if variant == "clean" else 2e-3)
+
+
+def test_hanging_filling_costs_one_face_not_the_run(sharp_box, monkeypatch):
+    # MakeFilling spun for minutes on box_fillet/noisy05 (ProjLib inside GeomPlate). Its child is killed at the
+    # timeout: the part gets a "failed" record, the five other sides are still built on their own planes.
+    from recon.brep import _build
+    from recon.fit import SurfaceFit
+
+    monkeypatch.setattr(_build, "FILLING_TIMEOUT", 1e-4)
+    v, f, lab = sharp_box
+    fits = _fits_by_label(v, f, lab, 0.01)
+    fits[4] = SurfaceFit("bspline", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0, ok=False, reason="test")
+    res = build_solid(curve_network(v, f, lab), fits, tolerance=0.01)
+    rec = {r.part: r for r in res.faces}
+    assert rec[4].status == "failed" and rec[4].face is None and "did not finish" in rec[4].message
+    assert all(rec[p].status == "ok" for p in (0, 1, 2, 3, 5))
+    assert res.validity.n_faces == 5 and not res.ok
+
+
+def test_wait_child_kills_a_child_past_its_timeout():
+    import os
+    import time
+
+    from recon.brep._build import _wait_child
+
+    pid = os.fork()
+    if pid == 0:
+        time.sleep(60)
+        os._exit(0)
+    assert _wait_child(pid, 0.05) is None
+    with pytest.raises(ChildProcessError):  # reaped: no zombie left
+        os.waitpid(pid, os.WNOHANG)

@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import tempfile
+import time
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -53,6 +55,12 @@ from ._surfaces import SurfaceModel, surface_model
 __all__ = ["BrepResult", "FaceRecord", "Validity", "build_solid", "shape_validity"]
 
 log = logging.getLogger(__name__)
+
+#: Seconds one ``BRepOffsetAPI_MakeFilling`` may take (it normally takes well under one) before it is given up.
+FILLING_TIMEOUT = 20.0
+#: Seconds all filling fallbacks of one :func:`build_solid` may take together: a mesh whose every part needs one
+#: must still end in a result (with failed faces) rather than run for hours.
+FILLING_BUDGET = 120.0
 
 #: Paper §4 / Figure 4: smooth patches grey, linear parts purple, junctions yellow (terminals green, §3).
 KIND_COLOURS = {
@@ -441,12 +449,30 @@ def _filled_face(loops: list[np.ndarray], edges, points, context):
     return face, surface
 
 
-def _isolated_filled_face(loops, edges, points, context):
-    """:func:`_filled_face` in a forked child process.
+def _wait_child(pid: int, timeout: float):
+    """``os.waitpid`` status of child ``pid``, or ``None`` after killing it once ``timeout`` seconds passed."""
+    deadline = time.monotonic() + timeout
+    delay = 0.002
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return status
+        if time.monotonic() > deadline:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+            return None
+        time.sleep(delay)
+        delay = min(0.05, 2 * delay)
+
+
+def _isolated_filled_face(loops, edges, points, context, *, timeout: float = FILLING_TIMEOUT):
+    """:func:`_filled_face` in a forked child process, killed after ``timeout`` seconds.
 
     ``BRepOffsetAPI_MakeFilling`` can crash the whole process (a segmentation fault inside GeomPlate on
-    noisy boundaries, seen on the box_fillet noisy20 fixture) where no exception can be caught. In a child
-    the crash costs one face, not the user's session: the face comes back through a BREP file.
+    noisy boundaries, seen on the box_fillet noisy20 fixture) where no exception can be caught, or spin for
+    minutes (``ProjLib_CompProjectedCurve`` inside ``GeomPlate_BuildPlateSurface``, box_fillet noisy05). In a
+    child the crash or the hang costs one face, not the user's session: the face comes back through a BREP
+    file.
     """
     if not hasattr(os, "fork"):
         return _filled_face(loops, edges, points, context)
@@ -467,7 +493,9 @@ def _isolated_filled_face(loops, edges, points, context):
                 code = 3
             finally:
                 os._exit(code)
-        _, status = os.waitpid(pid, 0)
+        status = _wait_child(pid, timeout)
+        if status is None:
+            raise BrepError(f"BRepOffsetAPI_MakeFilling did not finish within {timeout:g} s; the part has no face")
         if os.WIFSIGNALED(status):
             raise BrepError(f"BRepOffsetAPI_MakeFilling crashed (signal {os.WTERMSIG(status)}); the part has no face")
         code = os.WEXITSTATUS(status)
@@ -490,15 +518,17 @@ def _isolated_filled_face(loops, edges, points, context):
 # --------------------------------------------------------------------------------------------------
 
 
-def _fallback_face(loops, edges, points, normals, context):
+def _fallback_face(loops, edges, points, normals, context, *, timeout: float = FILLING_TIMEOUT):
     """A filling surface through the part's boundary and points, trimmed by the shared wires if possible.
 
     Returns ``(face or None, area, status, message)``; ``status`` is ``"filled"`` for a face on the filling
     surface bounded by the network's own edges, ``"filled-sewn"`` for MakeFilling's own face (new edges,
     joined to its neighbours by sewing), ``"failed"`` otherwise.
     """
+    if not timeout > 0:
+        return None, 0.0, "failed", f"no filling tried: the {FILLING_BUDGET:g} s budget for filling faces is spent"
     try:
-        filled, surface = _isolated_filled_face(loops, edges, points, context)
+        filled, surface = _isolated_filled_face(loops, edges, points, context, timeout=timeout)
     except BrepError as err:
         return None, 0.0, "failed", str(err)
     except Exception as err:  # noqa: BLE001  (an OCC failure outside the checked calls is still a record)
@@ -588,6 +618,7 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
             edges.append(None)
 
     open_mesh = bool(np.any(network.edge_parts[:, 1] == OUTSIDE))
+    fill_deadline = time.monotonic() + FILLING_BUDGET
     context = ShapeBuild_ReShape()
     records: list[FaceRecord] = []
     faces = []
@@ -610,7 +641,8 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         else:
             msg = "its fit is not within tolerance" if model is not None else "it has no fitted surface"
         if face is None:
-            face, area, status, msg2 = _fallback_face(loops, edges, pts, nrm, context)
+            left = min(FILLING_TIMEOUT, fill_deadline - time.monotonic())
+            face, area, status, msg2 = _fallback_face(loops, edges, pts, nrm, context, timeout=left)
             msg = "; ".join(m for m in (msg, msg2) if m)
             if face is None:
                 if fit_ok or model is None:
