@@ -187,9 +187,15 @@ def _unit(v):
 def estimate_noise(vertices, faces, L, mass, mean_edge: float) -> float:
     """Robust estimate of the vertex noise standard deviation normal to the surface.
 
-    Each vertex's offset from a lightly smoothed surface (scale of one edge length) along the smoothed
-    normal; the median absolute offset, scaled to a standard deviation. Features are a minority of the
-    vertices, so the median sees the smooth parts.
+    The smaller of two estimates, each blind to something the other sees:
+
+    - *hinge*: across every interior edge, the distance of the far vertex of one triangle from the
+      other triangle's plane. On a noisy flat area that is ``z_d − z_a − z_b + z_c`` (standard deviation
+      2σ); across a feature it is large, and on a faceted CAD tessellation (exact vertices, coplanar
+      neighbours) it is 0 — the tessellation's chordal error is not noise. Lower quartile, so features
+      and curvature (a quarter of the edges or more) do not count.
+    - *offset*: each vertex's offset from a lightly smoothed surface (one edge length) along the smoothed
+      normal, lower quartile. It needs no manifold edge pairing, but sees the curvature and the faceting.
     """
     s = 1.0 * mean_edge
     both = heat_smooth(np.hstack([vertices - vertices.mean(axis=0), _vertex_normals(vertices, faces)]), L, mass, s)
@@ -200,7 +206,33 @@ def estimate_noise(vertices, faces, L, mass, mean_edge: float) -> float:
     # |d| near them and can cover a third of the vertices of a small part. The offset also carries the
     # noise of the neighbours the smoothing averaged: on noisy planes with a known sigma the estimate
     # came out 0.75-0.85x sigma at this window, hence the 1.2.
-    return float(1.2 * np.percentile(np.abs(d - np.median(d)), 25) / 0.3186)
+    offset = float(1.2 * np.percentile(np.abs(d - np.median(d)), 25) / 0.3186)
+    hinge = _hinge_noise(vertices, faces)
+    return min(offset, hinge) if hinge is not None else offset
+
+
+def _hinge_noise(vertices, faces) -> float | None:
+    """Noise from the out-of-plane height of each triangle's neighbour across an edge (see :func:`estimate_noise`)."""
+    he = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)  # half-edge k of face f: 3 f + k
+    opp = np.roll(faces, 1, axis=1).ravel()  # the vertex opposite half-edge k
+    lo, hi = he.min(axis=1), he.max(axis=1)
+    key = lo * np.int64(len(vertices)) + hi
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    pair = np.flatnonzero(ks[1:] == ks[:-1])
+    # only edges with exactly two triangles (a non-manifold fan would pair arbitrary triangles)
+    single = np.ones(len(pair), bool)
+    single &= (pair + 2 >= len(ks)) | (ks[np.minimum(pair + 2, len(ks) - 1)] != ks[pair])
+    single &= (pair == 0) | (ks[np.maximum(pair - 1, 0)] != ks[pair])
+    pair = pair[single]
+    if len(pair) < 8:
+        return None
+    h1, h2 = order[pair], order[pair + 1]
+    cr = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    fn = _unit(cr)
+    f1 = h1 // 3
+    h = np.abs(np.einsum("ij,ij->i", vertices[opp[h2]] - vertices[he[h1, 0]], fn[f1]))
+    return float(np.percentile(h, 25) / 0.3186 / 2.0)
 
 
 def feature_field(mesh, *, scale: float | None = None, noise: float | None = None) -> FeatureField:

@@ -7,6 +7,7 @@ import pytest
 
 from recon.cli import main
 from recon.decompose import decompose, face_recovery
+from recon.decompose._regions import TOL_FLOOR
 from recon.decompose._synthetic import rounded_box
 
 
@@ -146,7 +147,7 @@ def test_tolerance_and_fits_exposed(box):
     # the clean rounded box: every part lies on one analytic surface of the right type and radius
     V, F, L, d = box
     diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    assert d.tolerance == pytest.approx(1e-4 * diag)  # noise-free: the floor of max(4 sigma, 1e-4 diag)
+    assert d.tolerance == pytest.approx(TOL_FLOOR * diag)  # noise-free: the floor of max(4 sigma, floor)
     fits = d.extra["fits"]
     assert sorted(fits) == list(range(len(d.parts)))
     want = {"patch": "plane", "linear": "cylinder", "junction": "sphere"}
@@ -155,7 +156,8 @@ def test_tolerance_and_fits_exposed(box):
         if p.kind != "patch":
             assert fits[p.id].params["radius"] == pytest.approx(3.0, abs=1e-6)
         faces = np.flatnonzero(d.labels == p.id)
-        assert np.abs(fits[p.id].distance(V[np.unique(F[faces])])).max() <= 2 * d.tolerance
+        # the surfaces are exact: within the old floor 1e-4 diag, far inside the tolerance
+        assert np.abs(fits[p.id].distance(V[np.unique(F[faces])])).max() <= 2e-4 * diag
 
 
 @pytest.mark.parametrize("kind", ["sphere", "cylinder", "cone", "torus"])

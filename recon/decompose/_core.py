@@ -83,7 +83,7 @@ def decompose(
     min_patch_area : float, optional
         Fitted regions smaller than this join the critical region (default :func:`default_min_area`).
     tolerance : float, optional
-        Distance within which a triangle lies on a patch's fitted surface (default ``max(4 σ, 1e-4 · diagonal)``
+        Distance within which a triangle lies on a patch's fitted surface (default ``max(4 σ, 5e-4 · diagonal)``
         with σ the estimated noise, the rule of :func:`recon.fit.default_tolerance`).
     features : FeatureField, optional
         A precomputed feature field (then ``scale`` is ignored).

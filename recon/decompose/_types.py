@@ -120,7 +120,7 @@ class Decomposition:
         Triangles of the critical region.
     tolerance : float
         Distance within which a triangle counted as lying on a patch's fitted surface (mesh units): the
-        fit-based tolerance ``max(4 σ, 1e-4 · diagonal)`` with σ measured on the fitted smooth faces, or the
+        fit-based tolerance ``max(4 σ, 5e-4 · diagonal)`` with σ measured on the fitted smooth faces, or the
         ``tolerance`` given to :func:`decompose`.
     extra : dict
         ``"fits"``: {part id: SurfaceFit} — the analytic surface each patch was grown on, and, for a linear
