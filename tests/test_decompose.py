@@ -93,6 +93,7 @@ def test_fixture_box_fillet_counts():
         ("prism", "noisy20", 0.85),
         ("plate_holes", "clean", 0.95),
         ("plate_holes", "noisy20", 0.85),
+        ("prism", "coarse", 0.95),  # a CAD tessellation: the same faces at any resolution
     ],
 )
 def test_fixture_face_recovery(part, variant, target):

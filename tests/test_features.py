@@ -29,6 +29,13 @@ def test_noise_estimate_tracks_sigma():
         assert 0.7 * sigma < ff.noise < 1.4 * sigma
 
 
+def test_noise_of_an_exact_tessellation_is_zero():
+    # every vertex lies on the box and flat neighbours are coplanar: the faceting is no noise
+    V, F, _ = rounded_box(size=(20, 16, 12), radius=3.0, spacing=2.0)
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    assert feature_field((V, F)).noise < 1e-9 * diag
+
+
 def test_rigid_motion_and_scaling_invariance():
     V, F, _ = rounded_box(size=(20, 16, 12), radius=3.0, spacing=1.0)
     a = feature_field((V, F))
