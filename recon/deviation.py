@@ -20,12 +20,18 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["DeviationStats", "FaceDeviation", "DeviationReport", "deviation", "plot_deviation"]
+__all__ = ["DeviationStats", "FaceDeviation", "DeviationReport", "deviation", "mesh_distance", "plot_deviation"]
 
 log = logging.getLogger(__name__)
 
 #: Default number of area-uniform samples on the B-rep for the shape → mesh direction.
 DEFAULT_SAMPLES = 20_000
+#: Most mesh triangles (pieces) measured per B-rep sample in the shape → mesh direction (:func:`mesh_distance`).
+MAX_CANDIDATES = 20_000
+#: Point–triangle pairs the shape → mesh direction may evaluate beyond the first 16 per point (~0.8 s per million).
+_PAIR_BUDGET = 20_000_000
+#: Point–triangle pairs evaluated per numpy batch (bounds the memory of the shape → mesh direction).
+_PAIR_CHUNK = 250_000
 #: Above this many triangles the preview splats points into a z-buffer instead of drawing polygons.
 _POLY_LIMIT = 100_000
 
@@ -45,8 +51,12 @@ class DeviationStats:
 
     @classmethod
     def of(cls, values, diagonal: float, *, signed: bool) -> DeviationStats:
-        """Statistics of ``values`` ((n,) float, n ≥ 1); ``signed`` adds the signed extremes."""
-        v = np.asarray(values, dtype=float)
+        """Statistics of the finite ``values`` ((n,) float); ``signed`` adds the signed extremes; NaN if none."""
+        v = np.asarray(values, dtype=float).ravel()
+        v = v[np.isfinite(v)]
+        if not v.size:
+            nan = float("nan")
+            return cls(nan, nan, nan, nan, 0, float(diagonal), nan if signed else None, nan if signed else None)
         a = np.abs(v)
         return cls(
             max=float(a.max()),
@@ -117,6 +127,9 @@ class DeviationReport:
         Signed distance of each mesh vertex to the B-rep (positive outside).
     nearest_face : (n,) int64
         Index into ``faces`` of each vertex's nearest face.
+    notes : tuple of str
+        What the figures leave out or only bound (points without a face, samples whose distance back to the
+        mesh is an upper bound). A B-rep with missing faces is measured to the faces it has.
     """
 
     diagonal: float
@@ -125,14 +138,16 @@ class DeviationReport:
     faces: tuple[FaceDeviation, ...]
     signed: np.ndarray = field(repr=False)
     nearest_face: np.ndarray = field(repr=False)
+    notes: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
-        """The report as JSON-ready data: ``{"diagonal", "mesh_to_shape", "shape_to_mesh", "faces"}``."""
+        """The report as JSON-ready data: ``{"diagonal", "mesh_to_shape", "shape_to_mesh", "faces", "notes"}``."""
         return {
             "diagonal": self.diagonal,
             "mesh_to_shape": self.mesh_to_shape.to_json(),
             "shape_to_mesh": self.shape_to_mesh.to_json(),
             "faces": [f.to_json() for f in self.faces],
+            "notes": list(self.notes),
         }
 
 
@@ -148,6 +163,145 @@ def _check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     if f.min() < 0 or f.max() >= len(v):
         raise InputError(f"mesh_faces: indices must lie in [0, {len(v)}), found {f.min()}..{f.max()}")
     return v, f.astype(np.int64)
+
+
+def _pieces(tri: np.ndarray, *, levels: int = 5) -> np.ndarray:
+    """Triangles ``(m, 3, 3)`` with the large ones split 1 → 4 at edge midpoints, up to ``levels`` times.
+
+    The union is the same surface, so the distance to it is unchanged; what shrinks is the largest
+    centroid–vertex distance, which is what loosens the candidate bound of :func:`mesh_distance` on meshes
+    mixing long CAD slivers with small triangles. At most about 4 m pieces are made.
+    """
+    def radius(t):
+        return np.linalg.norm(t - t.mean(axis=1, keepdims=True), axis=2).max(axis=1)
+
+    r = radius(tri)
+    target = max(2.0 * float(np.median(r)), float(r.max()) / 2**levels)
+    keep, big = [tri[r <= target]], tri[r > target]
+    budget = 4 * len(tri) + 10_000
+    for _ in range(levels):
+        if not len(big) or sum(map(len, keep)) + 4 * len(big) > budget:
+            break
+        a, b, c = big[:, 0], big[:, 1], big[:, 2]
+        ab, bc, ca = 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)
+        big = np.concatenate([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+        r = radius(big)
+        keep.append(big[r <= target])
+        big = big[r > target]
+    keep.append(big)
+    return np.concatenate(keep)
+
+
+def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Distance from each point ``p[i]`` (n, 3) to the triangle ``tri[i]`` (n, 3, 3), exact.
+
+    The nearest point is the orthogonal foot when it falls inside the triangle, else the nearest point of
+    one of the three edges; both are computed for every pair (no masks: faster in numpy) and the foot only
+    counts where its barycentric coordinates are inside. A degenerate triangle gets its edges' distance.
+    (``trimesh.triangles.closest_point`` was off by 8 % on a thin 2e-3-long triangle of the ABC mesh.)
+    """
+    def dot(x, y):
+        return np.einsum("ij,ij->i", x, y)
+
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac, ap, bc, bp = b - a, c - a, p - a, c - b, p - b
+    d00, d01, d11, d20, d21 = dot(ab, ab), dot(ab, ac), dot(ac, ac), dot(ap, ab), dot(ap, ac)
+    den = d00 * d11 - d01 * d01
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = (d11 * d20 - d01 * d21) / den
+        w = (d00 * d21 - d01 * d20) / den
+    inside = (v >= 0) & (w >= 0) & (v + w <= 1)
+    edge = None
+    for start, e, num in ((ap, ab, d20), (ap, ac, d21), (bp, bc, dot(bp, bc))):
+        ee = dot(e, e)
+        t = np.clip(num / np.maximum(ee, 1e-300), 0.0, 1.0)
+        q = start - t[:, None] * e
+        d = dot(q, q)
+        edge = d if edge is None else np.minimum(edge, d)
+    q = ap - np.where(inside, v, 0.0)[:, None] * ab - np.where(inside, w, 0.0)[:, None] * ac
+    return np.sqrt(np.where(inside, np.minimum(dot(q, q), edge), edge))
+
+
+def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None):
+    """Unsigned distance from each point to a triangle mesh, exact where it can be certified, bounded in cost.
+
+    Candidates come from a KD-tree on triangle centroids (the largest triangles split first, see
+    :func:`_pieces`); ``r`` is the largest centroid–vertex distance, so a piece whose centroid is ``c`` away
+    is at least ``c − r`` away. (1) The 16 nearest pieces: a point is settled when its best distance is at
+    most ``d₁₆ − r`` — every point near the mesh, i.e. every sample of a B-rep that follows it. (2) Each other
+    point measures every piece within ``best + r`` (exact), points with the fewest such pieces first, as long
+    as a point needs at most ``max_candidates`` and all together at most :data:`_PAIR_BUDGET` pairs. (3) The
+    rest — samples of a runaway surface far from the mesh — keep the nearest of 64 pieces: an upper bound,
+    flagged. ``trimesh.proximity.closest_point`` instead gathered every triangle whose box meets a ball as
+    large as the nearest-vertex distance: 22 GB for such samples (revolved/open, abc_00000050).
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+    faces : (m, 3) int
+    points : (s, 3) float
+    max_candidates : int, optional
+        Most triangles measured per point; default :data:`MAX_CANDIDATES`.
+
+    Returns
+    -------
+    distance : (s,) float
+    exact : (s,) bool
+        False where ``distance`` is only an upper bound.
+    """
+    from scipy.spatial import cKDTree
+
+    v, f = _check_mesh(vertices, faces)
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or p.shape[1] != 3 or not np.isfinite(p).all():
+        raise InputError(f"points: expected a finite (s, 3) float array, got shape {p.shape}")
+    cap = MAX_CANDIDATES if max_candidates is None else int(max_candidates)
+    if cap < 1:
+        raise InputError(f"max_candidates: expected a positive integer, got {max_candidates!r}")
+    tri = _pieces(v[f])
+    centre = tri.mean(axis=1)
+    reach = float(np.linalg.norm(tri - centre[:, None, :], axis=2).max())
+    tree = cKDTree(centre)
+    m = len(tri)
+    best = np.full(len(p), np.inf)
+    exact = np.zeros(len(p), dtype=bool)
+
+    def measure(idx, k):
+        step = max(1, _PAIR_CHUNK // k)
+        for s in range(0, len(idx), step):
+            i = idx[s : s + step]
+            dk, j = tree.query(p[i], k=k)
+            dk, j = dk.reshape(len(i), k), j.reshape(len(i), k)
+            d = _point_triangle_distance(np.repeat(p[i], k, axis=0), tri[j.ravel()])
+            best[i] = np.minimum(best[i], d.reshape(len(i), k).min(axis=1))
+            exact[i] = (k >= m) | (best[i] <= dk[:, -1] - reach)
+
+    # 1. the 16 nearest pieces settle every point near the mesh;
+    measure(np.arange(len(p)), min(16, m))
+    # 2. the others: every piece within best + reach, nearest-first by that count, within the budgets;
+    todo = np.flatnonzero(~exact)
+    if len(todo):
+        count = tree.query_ball_point(p[todo], best[todo] + reach, return_length=True)
+        order = np.argsort(count, kind="stable")
+        todo, count = todo[order], count[order]
+        ok = (count <= cap) & (np.cumsum(count) <= _PAIR_BUDGET)
+        take, pending = todo[ok], todo[~ok]
+        s = 0
+        while s < len(take):
+            e = s + max(1, int(np.searchsorted(np.cumsum(count[ok][s:]), _PAIR_CHUNK)))
+            i = take[s:e]
+            lists = tree.query_ball_point(p[i], best[i] + reach)
+            rows = np.repeat(i, [len(x) for x in lists])
+            cols = np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])
+            if len(cols):
+                d = _point_triangle_distance(p[rows], tri[cols])
+                np.minimum.at(best, rows, d)
+            exact[i] = True
+            s = e
+        # 3. past the budget: the nearest few pieces give an upper bound (exact only if certified).
+        if len(pending):
+            measure(pending, min(m, 64, cap))
+    return best, exact
 
 
 def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | None = None, rng=None) -> DeviationReport:
@@ -176,8 +330,6 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
     InputError
         Bad mesh arrays, a missing/unreadable STEP file, or a shape without faces.
     """
-    import trimesh
-
     from .brep._distance import BrepDistance
     from .brep._step_read import read_step
 
@@ -196,11 +348,19 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
 
     diagonal = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     signed, nearest, _ = brep.signed_distance(v)
-    log.info("mesh → shape: %d points, max |d| %.4g", len(v), np.nanmax(np.abs(signed)))
+    notes = []
+    lost = int((~np.isfinite(signed)).sum())
+    if lost:
+        notes.append(f"{lost} of {len(v)} mesh points found no face to measure to; they are left out")
+    log.info("mesh → shape: %d points, max |d| %.4g", len(v), np.nanmax(np.abs(signed)) if lost < len(v) else np.nan)
 
     pts, pts_face = brep.surface_samples(DEFAULT_SAMPLES if samples is None else int(samples), rng=rng)
-    mesh = trimesh.Trimesh(v, f, process=False)
-    _, back, _ = trimesh.proximity.closest_point(mesh, pts)
+    back, exact = mesh_distance(v, f, pts)
+    if not exact.all():
+        notes.append(f"shape → mesh: {int((~exact).sum())} of {len(pts)} B-rep samples lie far from the mesh; "
+                     "their distance is an upper bound")
+    for note in notes:
+        log.warning("deviation: %s", note)
     log.info("shape → mesh: %d samples, max %.4g", len(pts), back.max())
 
     faces = []
@@ -226,6 +386,7 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
         faces=tuple(faces),
         signed=signed,
         nearest_face=nearest,
+        notes=tuple(notes),
     )
 
 

@@ -170,7 +170,7 @@ def test_percentages_and_face_names_from_step(tmp_path):
     # The per-face maxima are the overall maximum's parts.
     assert max(fd.max for fd in rep.faces if fd.max is not None) == pytest.approx(rep.mesh_to_shape.max)
     js = rep.to_json()
-    assert set(js) == {"diagonal", "mesh_to_shape", "shape_to_mesh", "faces"}
+    assert set(js) == {"diagonal", "mesh_to_shape", "shape_to_mesh", "faces", "notes"} and js["notes"] == []
     assert {"name", "type", "max", "rms", "count"} <= set(js["faces"][0])
 
 
@@ -237,3 +237,68 @@ def test_matches_brep_extrema_and_solid_classifier(make):
     np.testing.assert_allclose(np.abs(s), ref, atol=1e-7)
     inside = np.array([shape.is_inside(tuple(q)) for q in p])
     assert np.array_equal(s < 0, inside)
+
+
+# ---------------------------------------------------------------- robustness: bounded cost, broken B-reps
+def test_point_triangle_distance_analytic():
+    from recon.deviation import _point_triangle_distance
+
+    tri = np.array([[[0, 0, 0], [4, 0, 0], [0, 3, 0]]], dtype=float)
+    cases = [((1, 1, 2), 2.0),  # above the inside: the height
+             ((-3, -4, 0), 5.0),  # beyond vertex a in the plane: |p - a|
+             ((2, -1, 0), 1.0),  # beside edge ab
+             ((4, 3, 0), 12 / 5)]  # beside the hypotenuse 3x + 4y = 12: |12 + 12 - 12| / 5
+    p = np.array([c for c, _ in cases], dtype=float)
+    d = _point_triangle_distance(p, np.repeat(tri, len(p), axis=0))
+    np.testing.assert_allclose(d, [x for _, x in cases], rtol=1e-15)
+    # A degenerate triangle (three collinear points) is its segment: (2, 5, 0) is 5 from the x axis.
+    flat = np.array([[[0, 0, 0], [2, 0, 0], [4, 0, 0]]], dtype=float)
+    assert _point_triangle_distance(np.array([[2.0, 5, 0]]), flat)[0] == pytest.approx(5.0, rel=1e-15)
+
+
+def _brute(points, v, f):
+    from recon.deviation import _point_triangle_distance
+
+    tri = v[f]
+    return np.array([_point_triangle_distance(np.repeat(q[None], len(tri), 0), tri).min() for q in points])
+
+
+def test_mesh_distance_exact_where_certified_and_bounded_far_away():
+    # A box whose sides are long slivers next to a finely subdivided side: the case where the candidate
+    # bound is loose. Points near it must be exact (against brute force); points 1000 diagonals away with
+    # a 16-triangle cap are upper bounds (the cost is bounded, not the answer silently wrong).
+    from recon.deviation import mesh_distance
+
+    m = trimesh.creation.box(extents=(40, 2, 2))
+    fine = trimesh.creation.box(extents=(2, 2, 2)).subdivide_to_size(0.2)
+    fine.apply_translation((21, 0, 0))
+    mesh = trimesh.util.concatenate([m, fine])
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    rng = np.random.default_rng(7)
+    near = rng.uniform((-22, -3, -3), (24, 3, 3), (300, 3))
+    d, exact = mesh_distance(v, f, near)
+    truth = _brute(near, v, f)
+    assert exact.all()
+    np.testing.assert_allclose(d, truth, rtol=0, atol=1e-12)
+    far = rng.normal(size=(50, 3))
+    far = 1000 * 40 * far / np.linalg.norm(far, axis=1, keepdims=True)
+    d, exact = mesh_distance(v, f, far, max_candidates=16)  # 1000 diagonals away: ~all triangles qualify
+    truth = _brute(far, v, f)
+    assert np.all(d >= truth - 1e-9) and np.all(d <= truth + np.linalg.norm(v.max(0) - v.min(0)))
+    assert (d[exact] == pytest.approx(truth[exact], abs=1e-9))
+
+
+def test_faces_without_triangulation_are_still_measured(monkeypatch):
+    # plate_holes/coarse, abc_00000050: BRepMesh left every face of a broken B-rep without triangles and the
+    # candidate tree was empty ("zero-size array to reduction operation maximum"). Untriangulated faces are
+    # sampled on their p-curves and a UV grid: distances to a box stay the analytic ones.
+    from recon.brep import _distance
+
+    monkeypatch.setattr(_distance.BRep_Tool, "Triangulation_s", staticmethod(lambda face, loc: None))
+    rng = np.random.default_rng(8)
+    p = rng.uniform(-25, 25, (500, 3))
+    brep = BrepDistance(bd.Box(10, 20, 30).wrapped)
+    s, _, _ = brep.signed_distance(p)
+    np.testing.assert_allclose(s, box_sdf(p, np.array([5.0, 10.0, 15.0])), atol=1e-12)
+    pts, face = brep.surface_samples(100)
+    assert len(pts) > 0 and np.abs(box_sdf(pts, np.array([5.0, 10.0, 15.0]))).max() < 1e-9

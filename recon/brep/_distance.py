@@ -72,6 +72,8 @@ _ANALYTIC = {"plane", "cylinder", "cone", "sphere", "torus"}
 # sampled p-curves is not trusted and the exact OCCT classifier decides.
 _BAND = 2e-3
 _PCURVE_SAMPLES = 257
+# UV grid (per side) sampling a face that BRepMesh could not triangulate.
+_GRID = 48
 _EDGE_SAMPLES = 257
 
 
@@ -245,9 +247,15 @@ class BrepDistance:
         loc = TopLoc_Location()
         tri = BRep_Tool.Triangulation_s(fd.face, loc)
         if tri is None or tri.NbTriangles() == 0:
-            fd.nodes = np.empty((0, 3))
-            fd.uv = np.empty((0, 2))
+            # BRepMesh leaves some faces of a broken B-rep (inverted or self-intersecting wires) without
+            # triangles; points on its p-curves and a UV grid inside it still let it be measured.
             fd.tris = np.empty((0, 3), dtype=np.int64)
+            fd.uv = self._untriangulated_uv(fd)
+            fd.nodes = np.array([_xyz(fd.adaptor.Value(u, v)) for u, v in fd.uv]).reshape(-1, 3)
+            if len(fd.uv):
+                fd.sense = self._calibrate_sense(fd)
+            log.debug("face %d (%s) has no triangulation: %d points from its boundary and a UV grid",
+                      fd.index, fd.kind, len(fd.uv))
             return
         trsf = loc.Transformation()
         nodes = []
@@ -261,6 +269,17 @@ class BrepDistance:
             fd.uv = np.zeros((len(nodes), 2))
         fd.tris = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
         fd.sense = self._calibrate_sense(fd)
+
+    def _untriangulated_uv(self, fd: _Face) -> np.ndarray:
+        """(k, 2) UV points on a face without triangulation: its p-curve samples plus a grid inside it."""
+        u0, du, v0, dv = fd.uv_box
+        if not all(map(math.isfinite, fd.uv_box)) or max(du, dv) > 1e6 * max(self.diagonal, 2 * math.pi):
+            return np.empty((0, 2))
+        uv = [np.column_stack([u0 + r[:, 0] * du, v0 + r[:, 1] * dv]) for r in fd.rings]
+        g = (np.arange(_GRID) + 0.5) / _GRID
+        grid = np.column_stack([u0 + np.repeat(g, _GRID) * du, v0 + np.tile(g, _GRID) * dv])
+        uv.append(grid[self._inside(fd, grid)])
+        return np.vstack(uv)
 
     def _calibrate_sense(self, fd: _Face) -> float:
         """Sign turning this module's geometric normal into the face's outward normal.
@@ -310,6 +329,8 @@ class BrepDistance:
                 pts.append(p)
                 uvs.append(uv)
                 fid.append(np.full(len(p), fd.index))
+        if sum(len(q) for q in pts) == 0:
+            raise BrepError(f"shape: none of its {len(self._faces)} faces could be tessellated or sampled")
         self._sample_points = np.vstack(pts)
         self._sample_uv = np.vstack(uvs)
         self._sample_face = np.concatenate(fid).astype(np.int64)
@@ -501,6 +522,8 @@ class BrepDistance:
             cands = self._critical_points(fd, p)
         else:
             if uv0 is None:
+                if not len(fd.nodes):
+                    return np.full(n, np.nan), np.full((n, 3), np.nan), np.zeros((n, 3))
                 j = cKDTree(fd.nodes).query(p)[1]
                 uv0 = fd.uv[j]
             cands = self._generic_projection(fd, p, uv0)
