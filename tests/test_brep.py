@@ -263,3 +263,36 @@ def test_wait_child_kills_a_child_past_its_timeout():
     assert _wait_child(pid, 0.05) is None
     with pytest.raises(ChildProcessError):  # reaped: no zombie left
         os.waitpid(pid, os.WNOHANG)
+
+
+@pytest.mark.parametrize("bad", [
+    dict(type="plane", params={}, ok=True),  # "surface fit params: expected one of (...), got keys []"
+    dict(type="cylinder", params={"origin": (0, 0, 0), "axis": (0, 0, 1), "radius": -2.0}, ok=False),
+], ids=["empty-params-ok", "negative-radius"])
+def test_unusable_fit_falls_back_instead_of_aborting(sharp_box, bad):
+    # prism/coarse and five noisy20 fixtures aborted the whole build on one fit without usable parameters.
+    from recon.fit import SurfaceFit
+
+    v, f, lab = sharp_box
+    fits = _fits_by_label(v, f, lab, 0.01)
+    fits[4] = SurfaceFit(bad["type"], bad["params"], {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0,
+                         ok=bad["ok"], reason="test")
+    res = build_solid(curve_network(v, f, lab), fits, tolerance=0.01)
+    rec = {r.part: r for r in res.faces}
+    # Four straight edges and coplanar points: the filling is the box's side, so the box comes back.
+    assert rec[4].status == "filled" and res.ok and res.validity.n_faces == 6
+    assert res.validity.volume == pytest.approx(6000.0, rel=1e-5)
+
+
+def test_no_face_at_all_is_one_clear_error(sharp_box, monkeypatch):
+    # Nothing to assemble must be a BrepError naming the cause, not an empty shape failing a later stage
+    # ("shape: expected a shape with at least one face" from the deviation, on three coarse fixtures).
+    from recon.brep import _build
+    from recon.errors import BrepError
+    from recon.fit import SurfaceFit
+
+    monkeypatch.setattr(_build, "FILLING_BUDGET", 0.0)
+    v, f, lab = sharp_box
+    none = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0, ok=False, reason="test")
+    with pytest.raises(BrepError, match="none of the 6 parts got a face"):
+        build_solid(curve_network(v, f, lab), {p: none for p in range(6)}, tolerance=0.01)

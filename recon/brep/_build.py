@@ -582,11 +582,12 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
             raise InputError(f"build_solid: `surfaces` has no surface for part {p}") from err
         try:
             models[p] = surface_model(s).reframed(network.part_samples(p)[0])
-        except (InputError, BrepError) as err:
-            if bool(getattr(s, "ok", True)):
-                raise
-            # A failed fit without usable parameters: the part gets a filling face, or none.
-            log.info("part %d: no surface from its failed fit (%s)", p, err)
+        except Exception as err:  # noqa: BLE001  (ReconError, or OCC refusing the parameters)
+            if not hasattr(s, "params"):
+                raise  # not a fit: the caller passed something else (misuse)
+            # A fit without usable parameters (empty, or ones OCC refuses): the part gets a filling face, or
+            # none. Reported as "prism/coarse: surface fit params: expected one of (...), got keys []".
+            log.info("part %d: no surface from its fit (%s: %s)", p, type(err).__name__, err)
             models[p] = None
     warnings: list[str] = []
     if len(network.nonmanifold):
@@ -668,6 +669,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     faces = [TopoDS.Face_s(context.Apply(f)) for f in faces]
     records = [FaceRecord(r.part, r.name, r.kind, r.surface_type, r.status, r.area,
                           None if r.face is None else TopoDS.Face_s(context.Apply(r.face)), r.message) for r in records]
+    if not faces:
+        first = next((r.message for r in records if r.message), "")
+        raise BrepError(f"none of the {len(records)} parts got a face (first: {first})")
     shape = _assemble(faces, tolerance, open_mesh, warnings)
     # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
     final_faces = []
