@@ -41,6 +41,9 @@ def main(argv: list[str] | None = None) -> int:
     except ReconError as err:
         print(f"recon {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except MemoryError as err:  # numpy's _ArrayMemoryError included: one line, not a traceback
+        print(f"recon {args.command}: error: out of memory ({err or 'an allocation failed'})", file=sys.stderr)
+        return 3
     except KeyboardInterrupt:
         print(f"recon {args.command}: interrupted", file=sys.stderr)
         return 130
