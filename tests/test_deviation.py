@@ -302,3 +302,18 @@ def test_faces_without_triangulation_are_still_measured(monkeypatch):
     np.testing.assert_allclose(s, box_sdf(p, np.array([5.0, 10.0, 15.0])), atol=1e-12)
     pts, face = brep.surface_samples(100)
     assert len(pts) > 0 and np.abs(box_sdf(pts, np.array([5.0, 10.0, 15.0]))).max() < 1e-9
+
+
+def test_signed_distance_in_chunks_equals_one_batch(monkeypatch):
+    # Million-vertex meshes are queried in chunks to bound memory; chunking must not change a single value.
+    from recon.brep import _distance
+
+    rng = np.random.default_rng(9)
+    p = rng.uniform(-25, 25, (1000, 3))
+    brep = BrepDistance(bd.Box(10, 20, 30).wrapped)
+    whole = brep.signed_distance(p)
+    monkeypatch.setattr(_distance, "_QUERY_CHUNK", 97)
+    chunked = brep.signed_distance(p)
+    for a, b in zip(whole, chunked):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_allclose(chunked[0], box_sdf(p, np.array([5.0, 10.0, 15.0])), atol=1e-12)

@@ -72,6 +72,8 @@ _ANALYTIC = {"plane", "cylinder", "cone", "sphere", "torus"}
 # sampled p-curves is not trusted and the exact OCCT classifier decides.
 _BAND = 2e-3
 _PCURVE_SAMPLES = 257
+# Points per batch of signed_distance.
+_QUERY_CHUNK = 100_000
 # UV grid (per side) sampling a face that BRepMesh could not triangulate.
 _GRID = 48
 _EDGE_SAMPLES = 257
@@ -598,6 +600,10 @@ class BrepDistance:
         p = np.asarray(points, dtype=float)
         if p.ndim != 2 or p.shape[1] != 3:
             raise InputError(f"points: expected an (n, 3) array, got shape {p.shape}")
+        if len(p) > _QUERY_CHUNK:  # bounded memory on million-vertex meshes: (n, k) candidate arrays per chunk
+            parts = [self.signed_distance(p[s : s + _QUERY_CHUNK], neighbours=neighbours)
+                     for s in range(0, len(p), _QUERY_CHUNK)]
+            return tuple(np.concatenate(x) for x in zip(*parts))
         n = len(p)
         k = int(min(neighbours, len(self._sample_points)))
         dist, idx = self._tree.query(p, k=k)
