@@ -28,6 +28,9 @@ log = logging.getLogger(__name__)
 #: The stages in the order they run; progress callbacks receive these names.
 STAGES = ("load", "decompose", "fit", "brep", "deviation")
 
+#: Surface types a merge may keep (a B-spline fits anything: merging on it would erase edges).
+_ANALYTIC = ("plane", "sphere", "cylinder", "cone", "torus")
+
 #: A feature part whose area lies this much within tolerance of its neighbouring patches' surfaces is a sharp edge.
 EXPLAINED_SHARE = 0.9
 
@@ -149,6 +152,13 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
                 dissolved.append(pid)
         log.info("%d of %d feature parts are sharp: their triangles went to the patches", len(dissolved), len(features))
         labels = _absorb(labels, pairs, np.isin(labels, dissolved))
+    return _tidy(mesh, labels)
+
+
+def _tidy(mesh: Mesh, labels: np.ndarray) -> np.ndarray:
+    """One label per connected piece, pieces too small for a surface absorbed by the part they touch most,
+    labels renumbered 0..k−1 in order of first appearance (deterministic)."""
+    pairs = _faces_adjacency(mesh)
     # A label that fell apart into several connected pieces is one face per piece; pieces too small to carry a
     # surface of their own join the part they touch most.
     for _ in range(4):
@@ -163,6 +173,40 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
     remap = np.empty(labels.max() + 1, dtype=np.int64)
     remap[np.unique(labels)[order]] = np.arange(len(order))
     return remap[labels]
+
+
+def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float):
+    """Merge neighbouring faces that one analytic surface covers within tolerance.
+
+    The decomposition can leave a face in two pieces (a sliver patch beside its face, a face cut by a
+    short feature); two neighbours whose fits have the same analytic type and whose union one such surface
+    fits are one face. Pairs are tried largest shared boundary first; returns the new labels and fits.
+    """
+    labels = labels.copy()
+    fits = dict(fits)
+    pairs = _faces_adjacency(mesh)
+    for _ in range(len(fits)):
+        a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+        diff = a != b
+        if not diff.any():
+            break
+        key = np.sort(np.column_stack([a[diff], b[diff]]), axis=1)
+        uniq, count = np.unique(key, axis=0, return_counts=True)
+        merged = False
+        for (p, q) in uniq[np.argsort(-count, kind="stable")].tolist():
+            fp, fq = fits.get(p), fits.get(q)
+            if not (fp and fq and fp.type == fq.type and fp.type in _ANALYTIC):
+                continue
+            union = np.where(labels == q, p, labels)
+            fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p])[p]
+            if fit and fit.type == fp.type:
+                labels, fits[p] = union, fit
+                del fits[q]
+                merged = True
+                break
+        if not merged:
+            break
+    return labels, fits
 
 
 def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -275,6 +319,11 @@ def convert(
     step("fit", 0.0)
     labels = face_labels(mesh, dec, tolerance=tolerance)
     fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+    if merged.max() < labels.max():
+        log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
+        labels = _tidy(mesh, merged)
+        fits = _fit_parts(mesh, labels, tolerance=tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)
 
