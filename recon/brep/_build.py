@@ -669,6 +669,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     faces = [TopoDS.Face_s(context.Apply(f)) for f in faces]
     records = [FaceRecord(r.part, r.name, r.kind, r.surface_type, r.status, r.area,
                           None if r.face is None else TopoDS.Face_s(context.Apply(r.face)), r.message) for r in records]
+    if not records:
+        raise BrepError("the curve network has no part with a boundary (one part covers the whole mesh): "
+                        "no face can be bounded")
     if not faces:
         first = next((r.message for r in records if r.message), "")
         raise BrepError(f"none of the {len(records)} parts got a face (first: {first})")
