@@ -17,7 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .decompose import Decomposition, decompose
-from .errors import BrepError, InputError
+from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_surface
 from .mesh import Mesh, clean_mesh, load_mesh
 
@@ -338,17 +338,23 @@ def convert(
     times["brep"] = time.perf_counter() - t
     step("brep", 1.0)
 
-    dev = None
+    dev, dev_error = None, None
     if deviation:
         from .deviation import deviation as measure
 
         t = time.perf_counter()
         step("deviation", 0.0)
-        dev = measure(mesh.vertices, mesh.faces, brep.shape)
+        try:
+            dev = measure(mesh.vertices, mesh.faces, brep.shape)
+        except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
+            log.warning("deviation not measured: %s", err)
+            dev_error = str(err)
         times["deviation"] = time.perf_counter() - t
         step("deviation", 1.0)
 
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance)
+    if dev_error:
+        report["warnings"].append(f"deviation not measured: {dev_error}")
     return Conversion(brep.shape, report, mesh, dec, labels, fits, brep)
 
 
@@ -407,4 +413,10 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
     }
     if dev is not None:
         report["deviation"] = dev.to_json()
+        report["warnings"].extend(dev.notes)
+        missing = sum(r.face is None for r in brep.faces)
+        if missing:
+            report["warnings"].append(
+                f"deviation is measured to the {len(brep.faces) - missing} faces that exist; {missing} parts have none"
+            )
     return report
