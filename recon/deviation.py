@@ -141,14 +141,17 @@ class DeviationReport:
     notes: tuple[str, ...] = ()
 
     def to_json(self) -> dict:
-        """The report as JSON-ready data: ``{"diagonal", "mesh_to_shape", "shape_to_mesh", "faces", "notes"}``."""
-        return {
+        """The report as JSON-ready data: ``{"diagonal", "mesh_to_shape", "shape_to_mesh", "faces"}``, and
+        ``"notes"`` only when some figures are bounds rather than exact values (the documented keys stay stable)."""
+        out = {
             "diagonal": self.diagonal,
             "mesh_to_shape": self.mesh_to_shape.to_json(),
             "shape_to_mesh": self.shape_to_mesh.to_json(),
             "faces": [f.to_json() for f in self.faces],
-            "notes": list(self.notes),
         }
+        if self.notes:
+            out["notes"] = list(self.notes)
+        return out
 
 
 def _check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
