@@ -47,25 +47,13 @@ from OCP.TopTools import TopTools_IndexedMapOfShape
 
 from ..errors import BrepError, InputError
 from ._step_read import faces_of
+from ._surfaces import SURFACE_TYPE_NAMES
 
 __all__ = ["BrepDistance", "SURFACE_TYPES"]
 
 log = logging.getLogger(__name__)
 
-#: Report names of ``GeomAbs_SurfaceType`` values.
-SURFACE_TYPES = {
-    GeomAbs_SurfaceType.GeomAbs_Plane: "plane",
-    GeomAbs_SurfaceType.GeomAbs_Cylinder: "cylinder",
-    GeomAbs_SurfaceType.GeomAbs_Cone: "cone",
-    GeomAbs_SurfaceType.GeomAbs_Sphere: "sphere",
-    GeomAbs_SurfaceType.GeomAbs_Torus: "torus",
-    GeomAbs_SurfaceType.GeomAbs_BezierSurface: "bezier",
-    GeomAbs_SurfaceType.GeomAbs_BSplineSurface: "bspline",
-    GeomAbs_SurfaceType.GeomAbs_SurfaceOfRevolution: "revolution",
-    GeomAbs_SurfaceType.GeomAbs_SurfaceOfExtrusion: "extrusion",
-    GeomAbs_SurfaceType.GeomAbs_OffsetSurface: "offset",
-    GeomAbs_SurfaceType.GeomAbs_OtherSurface: "other",
-}
+SURFACE_TYPES = SURFACE_TYPE_NAMES  # report names of GeomAbs_SurfaceType values
 _ANALYTIC = {"plane", "cylinder", "cone", "sphere", "torus"}
 
 # Width of the band (in UV normalised to the face's UV box) in which the polygon test on the

@@ -35,7 +35,8 @@ __all__ = ["SurfaceModel", "surface_model"]
 
 log = logging.getLogger(__name__)
 
-_TYPE_NAMES = {
+#: Report names of ``GeomAbs_SurfaceType`` values (shared by the builder and the deviation analysis).
+SURFACE_TYPE_NAMES = {
     GeomAbs_SurfaceType.GeomAbs_Plane: "plane",
     GeomAbs_SurfaceType.GeomAbs_Cylinder: "cylinder",
     GeomAbs_SurfaceType.GeomAbs_Cone: "cone",
@@ -46,6 +47,7 @@ _TYPE_NAMES = {
     GeomAbs_SurfaceType.GeomAbs_SurfaceOfRevolution: "revolution",
     GeomAbs_SurfaceType.GeomAbs_SurfaceOfExtrusion: "extrusion",
     GeomAbs_SurfaceType.GeomAbs_OffsetSurface: "offset",
+    GeomAbs_SurfaceType.GeomAbs_OtherSurface: "other",
 }
 
 
@@ -192,7 +194,7 @@ def project_occ(geom: Geom_Surface, points) -> tuple[np.ndarray, np.ndarray]:
 
 def _from_geom(geom: Geom_Surface) -> SurfaceModel:
     ad = GeomAdaptor_Surface(geom)
-    kind = _TYPE_NAMES.get(ad.GetType(), "other")
+    kind = SURFACE_TYPE_NAMES.get(ad.GetType(), "other")
     if kind == "plane":
         pln = ad.Plane()
         pos = pln.Position()
