@@ -295,9 +295,8 @@ class BrepDistance:
             sense = -sense
         return sense
 
-    def _build_samples(self, rng):
-        """Dense points on every face (nodes + area-uniform) for the candidate KD-tree."""
-        pts, fid, uvs = [], [], []
+    def _triangle_areas(self) -> list:
+        """Area of every tessellation triangle, one (t,) array per face (empty for a face without triangles)."""
         areas = []
         for fd in self._faces:
             if len(fd.tris):
@@ -305,6 +304,12 @@ class BrepDistance:
                 areas.append(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1))
             else:
                 areas.append(np.empty(0))
+        return areas
+
+    def _build_samples(self, rng):
+        """Dense points on every face (nodes + area-uniform) for the candidate KD-tree."""
+        pts, fid, uvs = [], [], []
+        areas = self._triangle_areas()
         total = float(sum(a.sum() for a in areas))
         # Spacing h ≈ diagonal/150, at most 200k samples: the candidate margin below scales with h.
         count = int(min(200_000, max(5_000, total / (self.diagonal / 150.0) ** 2)))
@@ -640,13 +645,7 @@ class BrepDistance:
         face : (s,) int64
         """
         rng = np.random.default_rng(1) if rng is None else rng
-        areas = []
-        for fd in self._faces:
-            if len(fd.tris):
-                a, b, c = (fd.nodes[fd.tris[:, k]] for k in range(3))
-                areas.append(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1))
-            else:
-                areas.append(np.empty(0))
+        areas = self._triangle_areas()
         total = float(sum(a.sum() for a in areas))
         pts, fid = [], []
         for fd, area in zip(self._faces, areas):

@@ -55,7 +55,23 @@ def within_tolerance(deviation: dict[str, float], tolerance: float) -> bool:
 
 
 @dataclass(frozen=True)
-class SurfaceFit:
+class _Fit:
+    """What every fit carries: its type, parameters, deviation over its points, and whether it succeeded
+    (falsy with the reason when not, after scikit-image's ``FailedEstimation``)."""
+
+    type: str
+    params: dict[str, Any]
+    deviation: dict[str, float]
+    n_points: int
+    ok: bool = True
+    reason: str = ""
+
+    def __bool__(self) -> bool:
+        return bool(self.ok)
+
+
+@dataclass(frozen=True)
+class SurfaceFit(_Fit):
     """One fitted surface, or a failed attempt (falsy) with the reason.
 
     Attributes
@@ -83,16 +99,6 @@ class SurfaceFit:
         Why not, when ``ok`` is False; empty otherwise.
     """
 
-    type: str
-    params: dict[str, Any]
-    deviation: dict[str, float]
-    n_points: int
-    ok: bool = True
-    reason: str = ""
-
-    def __bool__(self) -> bool:
-        return bool(self.ok)
-
     @cached_property
     def surface(self):
         """The geometric surface (``Plane``, ``Sphere``, ...), rebuilt from ``params``; None if there are none."""
@@ -112,7 +118,7 @@ class SurfaceFit:
 
 
 @dataclass(frozen=True)
-class CurveFit:
+class CurveFit(_Fit):
     """One fitted curve, or a failed attempt (falsy) with the reason.
 
     Attributes
@@ -131,16 +137,6 @@ class CurveFit:
     ok : bool
     reason : str
     """
-
-    type: str
-    params: dict[str, Any]
-    deviation: dict[str, float]
-    n_points: int
-    ok: bool = True
-    reason: str = ""
-
-    def __bool__(self) -> bool:
-        return bool(self.ok)
 
     @cached_property
     def curve(self):
