@@ -453,9 +453,9 @@ def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
     if len(bridges):
         ed = topo.edges[sk_cross[bridges]]
         s_a, s_b = src[ed[:, 0]], src[ed[:, 1]]
-        tree_pts = V
+        tree = cKDTree(V)
         for sa_, sb_ in zip(s_a.tolist(), s_b.tolist()):
-            path = _local_geodesic(graph, tree_pts, sa_, sb_, s)
+            path = _local_geodesic(graph, V, sa_, sb_, s, tree)
             if path is not None and len(path) > 1:
                 a, b = np.minimum(path[:-1], path[1:]), np.maximum(path[:-1], path[1:])
                 cut.append(a * np.int64(len(V)) + b)
@@ -463,13 +463,22 @@ def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
     return cut_keys, junction_faces, terminal_faces, chain_faces
 
 
-def _local_geodesic(graph: sp.csr_matrix, V, a: int, b: int, s: float):
-    """Shortest path a → b in ``graph`` within a ball around both (vertex index list, or None)."""
+def _local_geodesic(graph: sp.csr_matrix, V, a: int, b: int, s: float, tree: cKDTree | None = None):
+    """Shortest path a → b in ``graph`` within a ball around both (vertex index list, or None).
+
+    With a ``tree`` of ``V`` the ball's candidates come from it (a slightly larger ball), then the same exact
+    test as without: one bridge costs its ball, not a pass over every vertex.
+    """
     if a == b:
         return None
     centre = 0.5 * (V[a] + V[b])
     radius = 0.75 * float(np.linalg.norm(V[a] - V[b])) + 2.0 * s
-    idx = np.flatnonzero(np.einsum("ij,ij->i", V - centre, V - centre) <= radius * radius)
+    if tree is None:
+        idx = np.flatnonzero(np.einsum("ij,ij->i", V - centre, V - centre) <= radius * radius)
+    else:
+        cand = np.sort(np.asarray(tree.query_ball_point(centre, radius * (1.0 + 1e-6) + 1e-12), dtype=np.int64))
+        w = V[cand] - centre
+        idx = cand[np.einsum("ij,ij->i", w, w) <= radius * radius]
     sub = graph[idx][:, idx]
     ia = np.searchsorted(idx, a)
     ib = np.searchsorted(idx, b)

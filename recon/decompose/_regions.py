@@ -22,6 +22,7 @@ Tolerances: ``tolerance`` is a distance (default ``max(4 σ, 5e-4 · diagonal)``
 
 from __future__ import annotations
 
+import hashlib
 import logging
 from dataclasses import dataclass
 
@@ -113,17 +114,38 @@ def _fit(
     ``polish``: refine by least squares when the closed form is within tolerance; ``refine``: the types refined
     also when it is only near (for the many seed discs only the cheap ones, :data:`SEED_REFINE`).
     """
-    verts, inv = np.unique(ctx.F[faces], return_inverse=True)
-    if len(verts) < MIN_REGION_VERTICES:
+    return _fit_input(ctx, _FitInput(ctx, faces), types, polish=polish, refine=refine)
+
+
+class _FitInput:
+    """The points (and, on first use, normals) a fit of ``faces`` runs on, shared by several fits of one face set."""
+
+    def __init__(self, ctx: _Ctx, faces: np.ndarray):
+        self.faces = faces
+        self.verts, inv = np.unique(ctx.F[faces], return_inverse=True)
+        self.inv = inv.reshape(-1)
+        self.enough = len(self.verts) >= MIN_REGION_VERTICES
+        self._nrm = None
+        self._step = -(-len(self.verts) // MAX_FIT_POINTS) if len(self.verts) > MAX_FIT_POINTS else 1
+        self.pts = ctx.V[self.verts[:: self._step]] if self.enough else None
+
+    def normals(self, ctx: _Ctx) -> np.ndarray:
+        if self._nrm is None:
+            self._nrm = _region_normals(ctx, self.faces, self.inv, len(self.verts))[:: self._step]
+        return self._nrm
+
+
+def _fit_input(
+    ctx: _Ctx, fi: _FitInput, types=tuple(ANALYTIC_FITTERS), *, polish: bool = True, refine=tuple(ANALYTIC_FITTERS)
+) -> SurfaceFit | None:
+    """:func:`_fit` on prepared input. A plane's closed form needs no normals: a plain plane test skips them."""
+    if not fi.enough:
         return None
-    nrm = _region_normals(ctx, faces, inv.reshape(-1), len(verts))
-    if len(verts) > MAX_FIT_POINTS:  # an even subset: the surface is decided by far fewer points
-        step = -(-len(verts) // MAX_FIT_POINTS)
-        verts, nrm = verts[::step], nrm[::step]
-    pts = ctx.V[verts]
     for kind in ANALYTIC_FITTERS:
         if kind in types:
-            fit = quick_fit(kind, pts, nrm, ctx.tol, polish=polish, refine=kind in refine)
+            # the plane's closed form ignores the normals; only the least-squares fitter would use them
+            nrm = None if kind == "plane" and not polish and kind not in refine else fi.normals(ctx)
+            fit = quick_fit(kind, fi.pts, nrm, ctx.tol, polish=polish, refine=kind in refine)
             if fit is not None:
                 return fit
     return None
@@ -197,11 +219,16 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
 
 
 def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray):
-    """Grow one region ring by ring over ``allowed`` triangles that stay on its surface; refit as it grows."""
+    """Grow one region ring by ring over ``allowed`` triangles that stay on its surface; refit as it grows.
+
+    ``faces`` sorted and unique. Bookkeeping is in the region's own size (the mesh is only touched through the
+    ``inreg`` mask), so the many small seeds of a large mesh do not cost a pass over the mesh per ring.
+    """
     inreg = np.zeros(len(ctx.F), bool)
     inreg[faces] = True
+    members = [faces]
     frontier = faces
-    fitted_size = len(faces)
+    size = fitted_size = len(faces)
     while len(frontier):
         nb = ctx.adj[frontier].ravel()
         nb = np.unique(nb[nb >= 0])
@@ -210,18 +237,26 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
             _, ok = _error(ctx, fit, nb)
             nb = nb[ok]
         inreg[nb] = True
+        if len(nb):
+            members.append(nb)
         frontier = nb
-        size = int(inreg.sum())
+        size += len(nb)  # nb is unique and was outside the region
         if size >= REFIT_GROWTH * fitted_size or not len(frontier):
             if size == fitted_size:
                 break
-            region = np.flatnonzero(inreg)
-            new = _fit(ctx, region, (fit.type,), polish=True) or _fit(ctx, region, polish=True)
+            region = np.sort(np.concatenate(members))  # == np.flatnonzero(inreg)
+            members = [region]
+            fi = _FitInput(ctx, region)
+            # the same type first, then any other (the same type failed on this input: not tried twice)
+            new = _fit_input(ctx, fi, (fit.type,), polish=True) or _fit_input(
+                ctx, fi, tuple(k for k in ANALYTIC_FITTERS if k != fit.type), polish=True
+            )
             fitted_size = size
             if new is not None:
                 fit = new
                 frontier = region  # the new surface may accept triangles the old one refused
-    return np.flatnonzero(inreg), fit
+    region = np.sort(np.concatenate(members)) if len(members) > 1 else members[0]
+    return region, fit
 
 
 def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=tuple(ANALYTIC_FITTERS)):
@@ -230,6 +265,7 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
     free = allowed.copy()
     tried = ~allowed
     out = []
+    incore = np.zeros(m, bool)
     order = np.argsort(priority, kind="stable")
     order = order[allowed[order]]
     pos = 0
@@ -240,7 +276,6 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
             continue
         # the seed disc: breadth-first rings over free triangles until it holds enough vertices
         core = np.array([seed])
-        incore = np.zeros(m, bool)
         incore[seed] = True
         while len(np.unique(ctx.F[core])) < SEED_VERTICES:
             src = np.repeat(core, 3)
@@ -253,13 +288,15 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
             if not len(nb):
                 break
             incore[nb] = True
-            core = np.flatnonzero(incore)
+            core = np.sort(np.concatenate([core, nb]))  # == np.flatnonzero(incore), without a pass over the mesh
+        incore[core] = False  # the mask is shared by all seeds: leave it clear
         tried[core] = True  # a failed seed is not retried from inside its own disc (nor right next to it)
         nb = ctx.adj[core].ravel()
         tried[nb[nb >= 0]] = True
-        if "plane" not in types and _fit(ctx, core, ("plane",), polish=False, refine=()) is not None:
+        fi = _FitInput(ctx, core)
+        if "plane" not in types and _fit_input(ctx, fi, ("plane",), polish=False, refine=()) is not None:
             continue  # flat: not the curved surface looked for (a huge radius would fit it too)
-        fit = _fit(ctx, core, types, refine=SEED_REFINE)
+        fit = _fit_input(ctx, fi, types, refine=SEED_REFINE)
         if fit is None:
             continue
         faces, fit = _grow_one(ctx, core, fit, free)
@@ -323,14 +360,26 @@ def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, stric
     return label
 
 
-def _refit(ctx: _Ctx, label: np.ndarray, fits: list) -> list:
+def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -> list:
+    """Refit every region on its current triangles. ``memo`` keeps the fits of face sets seen before: between
+    refinement passes most regions do not change, and the same fit on the same triangles is the same result."""
     out = list(fits)
+    order = np.argsort(label, kind="stable")
+    bounds = np.searchsorted(label[order], np.arange(len(fits) + 1))
     for r, fit in enumerate(fits):
         if fit.type == "free":
             continue
-        faces = np.flatnonzero(label == r)
+        faces = np.sort(order[bounds[r] : bounds[r + 1]])  # == np.flatnonzero(label == r), one sort for all
         if len(faces):
-            new = _fit(ctx, faces, (fit.type,), polish=True)
+            key = None
+            if memo is not None:
+                key = (fit.type, hashlib.blake2b(faces.tobytes(), digest_size=16).digest())
+            if key is not None and key in memo:
+                new = memo[key]
+            else:
+                new = _fit(ctx, faces, (fit.type,), polish=True)
+                if key is not None:
+                    memo[key] = new
             if new is not None:
                 out[r] = new
     return out
@@ -476,8 +525,9 @@ def fitted_regions(
     #    border triangles to the neighbour whose surface is clearly closer, refitting in between
     everywhere = np.ones(m, bool)
     label = _compete(ctx, label, fits, everywhere)
+    memo: dict = {}
     for _ in range(REFINE_PASSES):
-        fits = _refit(ctx, label, fits)
+        fits = _refit(ctx, label, fits, memo)
         new = _compete(ctx, label, fits, everywhere, swap=True)
         new = _compete(ctx, new, fits, everywhere)
         if (new == label).all():
