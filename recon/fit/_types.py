@@ -31,11 +31,30 @@ def deviation_stats(d: np.ndarray) -> dict[str, float]:
     a = np.abs(np.asarray(d, dtype=float))
     if a.size == 0:
         return {"max": float("nan"), "rms": float("nan"), "p99": float("nan")}
+    top = a.max()
     return {
-        "max": float(a.max()),
+        "max": float(top),
         "rms": float(np.sqrt(np.mean(a * a))),
-        "p99": float(np.percentile(a, ACCEPT_PERCENTILE)),
+        "p99": float(_percentile(a, ACCEPT_PERCENTILE) if np.isfinite(top) else np.percentile(a, ACCEPT_PERCENTILE)),
     }
+
+
+def _percentile(a: np.ndarray, q: float):
+    """``np.percentile(a, q)`` (linear method) of a finite 1-D array, bit for bit, by one partition.
+
+    The region growing of :mod:`recon.decompose` judges tens of thousands of small fits; numpy's general
+    percentile costs ~60 µs a call there (axis and method handling), this ~4 µs.
+    """
+    n = a.size
+    v = (n - 1) * np.true_divide(q, 100)  # numpy's virtual index for the linear method
+    if v >= n - 1:
+        return a.max()
+    lo_i = int(np.floor(v))
+    part = np.partition(a, (lo_i, lo_i + 1))
+    lo, hi = part[lo_i], part[lo_i + 1]
+    g = v - lo_i
+    diff = hi - lo
+    return hi - diff * (1 - g) if g >= 0.5 else lo + diff * g  # numpy's _lerp
 
 
 def within_tolerance(deviation: dict[str, float], tolerance: float) -> bool:
