@@ -302,11 +302,13 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
     for w in wires[1:]:
         mk.Add(w)
     fix = ShapeFix_Face(mk.Face())
-    # ShapeFix may split a shared edge (a hole's circle at a cylinder's seam): the shared context
-    # records it so the neighbouring faces get the same pieces.
-    fix.SetContext(context)
+    # ShapeFix may split a shared edge (a hole's circle at a cylinder's seam): the neighbouring faces must get
+    # the same pieces. It records into a context of this face's own, handed on to the shared one only when
+    # the face is accepted: a face that fails must not leave its neighbours with edges split for nothing.
+    local = ShapeBuild_ReShape()
+    fix.SetContext(local)
     fix.Perform()
-    face = TopoDS.Face_s(context.Apply(fix.Face()))
+    face = TopoDS.Face_s(local.Apply(fix.Face()))
     area = _area(face)
     if not area > 0:
         raise BrepError(f"face on its surface has area {area:.4g}")
@@ -315,7 +317,22 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
         problems = face_problems(face)
         if problems:
             raise BrepError(f"face on its surface is not valid ({problems})")
+    _hand_on(local, wires, context)
     return (TopoDS.Face_s(face.Reversed()) if vote < 0 else face), area
+
+
+def _hand_on(local, wires, context) -> None:
+    """Record in the shared ``context`` what the face's own ``local`` context did to the wires' edges."""
+    for wire in wires:
+        exp = TopExp_Explorer(wire, TopAbs_EDGE)
+        while exp.More():
+            edge = exp.Current()
+            now = local.Apply(edge)
+            if now.IsNull():
+                context.Remove(edge)
+            elif not now.IsSame(edge):
+                context.Replace(edge, now)
+            exp.Next()
 
 
 def _fix_edges(face) -> None:
