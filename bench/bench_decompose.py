@@ -115,28 +115,86 @@ def real():
     say()
 
 
-def scaling(sizes):
-    """Each size in a fresh process so the peak RSS is that run's."""
-    for spacing in sizes:
+#: Scaling cases: (label, Python expression giving (V, F)). The rounded box 80x60x40 with 6 mm fillets at grid
+#: spacings 2 … 0.2 (10k … 1M triangles, exact geometry at every size), and crank.off midpoint-subdivided once
+#: (a real mesh at 4x its triangles; generated here, never stored).
+SCALING = [
+    ("rounded box s=2.0", "rounded_box(size=(80,60,40),radius=6.0,spacing=2.0)[:2]"),
+    ("rounded box s=1.0", "rounded_box(size=(80,60,40),radius=6.0,spacing=1.0)[:2]"),
+    ("rounded box s=0.5", "rounded_box(size=(80,60,40),radius=6.0,spacing=0.5)[:2]"),
+    ("rounded box s=0.25", "rounded_box(size=(80,60,40),radius=6.0,spacing=0.25)[:2]"),
+    ("rounded box s=0.2", "rounded_box(size=(80,60,40),radius=6.0,spacing=0.2)[:2]"),
+    ("crank.off", f"_mesh({str(MESHES / 'crank.off')!r})"),
+    ("crank.off subdivided x4", f"subdivide(*_mesh({str(MESHES / 'crank.off')!r}))"),
+]
+#: The cases --quick leaves out (over 500k triangles).
+LARGE = ("rounded box s=0.25", "rounded box s=0.2", "crank.off subdivided x4")
+
+
+def subdivide(V, F):
+    """One midpoint subdivision: every triangle into four (the surface unchanged, 4x the triangles)."""
+    n = len(V)
+    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
+    key = np.minimum(e[:, 0], e[:, 1]) * np.int64(n) + np.maximum(e[:, 0], e[:, 1])
+    uniq, inv = np.unique(key, return_inverse=True)
+    mid = n + inv.reshape(3, -1).T  # (m, 3): midpoints of edges 01, 12, 20
+    V2 = np.vstack([V, 0.5 * (V[uniq // n] + V[uniq % n])])
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    m01, m12, m20 = mid[:, 0], mid[:, 1], mid[:, 2]
+    F2 = np.concatenate([np.stack(t, axis=1) for t in ((a, m01, m20), (m01, b, m12), (m20, m12, c), (m01, m12, m20))])
+    return V2, F2
+
+
+def _mesh(path):
+    from recon.mesh import load_mesh
+
+    m = load_mesh(path)
+    return m.vertices, m.faces
+
+
+def scaling(quick: bool, repeat: int = 2):
+    """Each case in a fresh process (peak RSS is that run's: mesh generation + decomposition); min of ``repeat``."""
+    say(f"Time of `decompose` alone (min of {repeat} runs in one process; 1 run over 500k triangles), peak resident set")
+    say("of that process (mesh generation included).")
+    say()
+    say("| case | triangles | s (min) | s per 100k | peak MB | patch | junction | linear | terminal |")
+    say("|---|---|---|---|---|---|---|---|---|")
+    for label, expr in SCALING:
+        if quick and label in LARGE:
+            continue
+        if "crank" in label and not (MESHES / "crank.off").exists():
+            continue
         code = (
-            "import time,resource;from recon.decompose._synthetic import rounded_box;from recon.decompose import decompose;"
-            f"V,F,L=rounded_box(size=(80,60,40),radius=6.0,spacing={spacing});t=time.perf_counter();d=decompose((V,F));"
-            "print(len(F), round(time.perf_counter()-t,2), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss//1024, d.counts())"
-        )
+            "import sys,time,resource;sys.path.insert(0,%r);from bench_decompose import subdivide,_mesh;"
+            "from recon.decompose._synthetic import rounded_box;from recon.decompose import decompose;"
+            "V,F=%s;ts=[];"
+            "exec('for _ in range(%d):\\n t=time.perf_counter();d=decompose((V,F));ts.append(time.perf_counter()-t)');"
+            "c=d.counts();print(len(F),round(min(ts),2),resource.getrusage(resource.RUSAGE_SELF).ru_maxrss//1024,"
+            "c['patch'],c['junction'],c['linear'],c['terminal'])"
+        ) % (str(HERE), expr, 1 if label in LARGE else repeat)
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-        say("- triangles, seconds, peak MB, counts: " + (out.stdout.strip() or out.stderr.strip()[-300:]))
+        if out.returncode or not out.stdout.strip():
+            say(f"| {label} | failed: {out.stderr.strip()[-200:]} | | | | | | | |")
+            continue
+        m, t, mb, *c = out.stdout.split()
+        say(f"| {label} | {m} | {t} | {100000 * float(t) / int(m):.2f} | {mb} | " + " | ".join(c) + " |")
+    say()
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true", help="skip the 1M-triangle run")
+    ap.add_argument("--quick", action="store_true", help="skip the scaling cases over 500k triangles")
+    ap.add_argument("--scaling", action="store_true", help="only the scaling table (printed, decompose.md untouched)")
     args = ap.parse_args()
+    if args.scaling:
+        scaling(args.quick)
+        sys.exit(0)
     say("# Surface decomposition benchmark (python bench/bench_decompose.py)")
     say()
     fixtures()
     synthetic()
     real()
-    say("## Scaling (rounded box 80x60x40, 6 mm fillets)")
+    say("## Scaling with the triangle count")
     say()
-    scaling([0.5, 0.25] if args.quick else [0.5, 0.25, 0.125])
+    scaling(args.quick)
     (HERE / "decompose.md").write_text("\n".join(LINES) + "\n")
