@@ -135,6 +135,8 @@ def test_two_bodies_give_a_compound():
     res = build_solid(curve_network(v, f, lab), surfaces, tolerance=1e-3)
     assert res.validity.n_solids == 2 and res.validity.valid
     assert res.validity.volume == pytest.approx(2000, rel=1e-9)
+    # Two closed solids and nothing else: the valid result for a mesh of two bodies.
+    assert res.validity.shape_type == "compound" and res.validity.n_shells == 2 and res.validity.ok
 
 
 def test_bad_arguments(fillet_box, fillet_result, tmp_path):

@@ -62,6 +62,11 @@ FILLING_TIMEOUT = 20.0
 #: must still end in a result (with failed faces) rather than run for hours.
 FILLING_BUDGET = 120.0
 
+#: Sewing tolerance, as a multiple of the model tolerance, when the shell has free edges (the last resort: it
+#: joins faces built on copies of the shared edges or on filling surfaces; more than this, measured up to 100×,
+#: closed no more shells on fandisk-b and rocker-arm2500 and started to merge small edges).
+SEWING_FACTOR = 10.0
+
 #: Paper §4 / Figure 4: smooth patches grey, linear parts purple, junctions yellow (terminals green, §3).
 KIND_COLOURS = {
     "patch": (0.75, 0.75, 0.75),
@@ -76,8 +81,10 @@ class FaceRecord:
     """One B-rep face.
 
     ``status`` is ``"ok"`` (its own surface), ``"poor"`` (its own surface although the fit was not within
-    tolerance: nothing better could be built), ``"filled"`` (a MakeFilling B-spline through its boundary and
-    mesh points, trimmed by the shared edges), ``"filled-sewn"`` (MakeFilling's own face, joined by sewing)
+    tolerance: nothing better could be built), ``"ok-sewn"`` / ``"poor-sewn"`` (the same, built on copies of
+    its boundary edges and joined to its neighbours by sewing), ``"filled"`` (a MakeFilling B-spline through
+    its boundary and mesh points, trimmed by the shared edges), ``"filled-sewn"`` (MakeFilling's own face,
+    joined by sewing)
     or ``"failed"`` (no face: the shell has a hole there); ``face`` is the ``TopoDS_Face`` in the final shape.
     """
 
@@ -102,10 +109,14 @@ class Validity:
     volume: float
     n_faces: int
     n_solids: int
+    n_shells: int = 0
 
     @property
     def ok(self) -> bool:
-        return self.valid and self.closed and self.shape_type == "solid" and self.volume > 0
+        """One valid closed solid, or (a mesh of several bodies) a compound of them and nothing else."""
+        solids = self.shape_type == "solid" or (
+            self.shape_type == "compound" and self.n_solids > 0 and self.n_shells == self.n_solids)
+        return self.valid and self.closed and solids and self.volume > 0
 
 
 @dataclass(frozen=True)
@@ -176,6 +187,7 @@ def shape_validity(shape) -> Validity:
         volume=float(props.Mass()),
         n_faces=_count(occ, TopAbs_FACE),
         n_solids=n_solids,
+        n_shells=_count(occ, TopAbs_SHELL),
     )
 
 
@@ -272,6 +284,35 @@ def _wire(refs, edges, context=None):
             if not mk.IsDone():
                 raise BrepError(f"BRepBuilderAPI_MakeWire failed ({mk.Error()}) at edge {abs(r) - 1}")
     return mk.Wire()
+
+
+def _face_on_copies(model: SurfaceModel, loops: list[np.ndarray], network: CurveNetwork, geo: NetworkGeometry,
+                    vote: int):
+    """The part's face on fresh copies of its boundary edges, or ``(None, 0.0)``.
+
+    A face that fails on the shared edges can succeed on the same curves built anew: an earlier neighbour's
+    ShapeFix may have split, re-parametrised or re-toleranced a shared edge in a way this face's ShapeFix
+    cannot follow (fandisk-b: a plane bounded by two lines and two circles, valid alone, NotClosed on the
+    shared edges). The copies are the same curves between the same points, so sewing joins the face to its
+    neighbours with no gap to bridge.
+    """
+    builder = BRep_Builder()
+    used = {abs(int(r)) - 1 for loop in loops for r in loop}
+    ends = {int(v) for e in used for v in network.edge_vertices[e]}
+    vertices = {}
+    for v in ends:
+        vtx = BRepBuilderAPI_MakeVertex(_pnt(geo.points[v])).Vertex()
+        builder.UpdateVertex(vtx, max(1e-7, 1.01 * float(geo.vertex_gap[v])))
+        vertices[v] = vtx
+    copies = [None] * network.n_edges
+    try:
+        for e in used:
+            a, b = network.edge_vertices[e]
+            copies[e] = _make_edge(geo.curves[e], vertices[int(a)], vertices[int(b)], builder)
+        return _face_on_surface(model, loops, copies, vote, ShapeBuild_ReShape())
+    except BrepError as err:
+        log.info("%s face on copies of its edges failed too: %s", model.kind, err)
+        return None, 0.0
 
 
 def _orientation_vote(model: SurfaceModel, points, normals) -> int:
@@ -651,11 +692,16 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         face, area, status, msg = None, 0.0, "failed", ""
         if fit_ok:
             try:
-                face, area = _face_on_surface(model, loops, edges, vote, context)
-                status = "ok"
+                face, area, status = *_face_on_surface(model, loops, edges, vote, context), "ok"
             except BrepError as err:
                 msg = str(err)
-                log.info("part %d (%s): %s; trying MakeFilling", p, model.kind, err)
+                face, area = _face_on_copies(model, loops, network, geo, vote)
+                if face is not None:
+                    status = "ok-sewn"
+                    warnings.append(f"{name}: on the shared edges it failed ({msg}); built on copies of them, "
+                                    "joined by sewing")
+                else:
+                    log.info("part %d (%s): %s; trying MakeFilling", p, model.kind, err)
         else:
             msg = "its fit is not within tolerance" if model is not None else "it has no fitted surface"
         if face is None:
@@ -670,13 +716,19 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                     try:
                         face, area = _face_on_surface(model, loops, edges, vote, context)
                         status = "poor"
-                        warnings.append(f"{name}: {msg}; kept its out-of-tolerance {model.kind} face")
                     except BrepError as err:
                         msg = f"{msg}; {err}"
+                        face, area = _face_on_copies(model, loops, network, geo, vote)
+                        status = "poor-sewn"
+                    if face is not None:
+                        warnings.append(f"{name}: {msg}; kept its out-of-tolerance {model.kind} face")
+                    else:
+                        status = "failed"
                         warnings.append(f"{name}: no face ({msg})")
             else:
                 warnings.append(f"{name}: own face failed ({msg}); replaced by a filling B-spline")
-        surface_type = model.kind if status in ("ok", "poor") else "bspline" if face is not None else (
+        own = status in ("ok", "ok-sewn", "poor", "poor-sewn")
+        surface_type = model.kind if own else "bspline" if face is not None else (
             model.kind if model is not None else "none")
         records.append(FaceRecord(p, name, kind, surface_type, status, area, face, msg))
         if face is not None:
@@ -724,20 +776,26 @@ def _assemble(faces, tolerance, open_mesh, warnings):
     for f in faces:
         builder.Add(shell, f)
     if free_edge_count(shell) > 0 and not open_mesh:
-        # Faces that did not use the shared edges (fillings, failures): sew as the last resort.
-        sew = BRepBuilderAPI_Sewing(10 * tolerance)
+        # Faces that did not use the shared edges (copies, fillings, failures): sew as the last resort. A mesh
+        # of several bodies sews into several shells: their faces go back into one shell, which ShapeFix_Shell
+        # splits by connection below.
+        sew = BRepBuilderAPI_Sewing(SEWING_FACTOR * tolerance)
         for f in faces:
             sew.Add(f)
         sew.Perform()
-        sewn = sew.SewedShape()
-        shells = []
-        exp = TopExp_Explorer(sewn, TopAbs_SHELL)
+        sewn = TopoDS_Shell()
+        builder.MakeShell(sewn)
+        n_faces = 0
+        exp = TopExp_Explorer(sew.SewedShape(), TopAbs_FACE)
         while exp.More():
-            shells.append(TopoDS.Shell_s(exp.Current()))
+            builder.Add(sewn, exp.Current())
+            n_faces += 1
             exp.Next()
-        warnings.append(f"shell had free edges; sewn at {10 * tolerance:g}")
-        if len(shells) == 1:
-            shell = shells[0]
+        if n_faces:
+            shell = sewn
+            warnings.append(f"shell had free edges; sewn at {SEWING_FACTOR * tolerance:g}")
+        else:
+            warnings.append("shell had free edges; sewing returned no face")
     fix = ShapeFix_Shell(shell)
     fix.Perform()
     fixed = fix.Shape()
