@@ -741,13 +741,36 @@ def _bspline_pinned(pts, *, closed: bool, tolerance: float, degree: int = 3) -> 
             else:
                 rhs_pen = 0.0
             ctrl[1:-1] = np.linalg.solve(normal, a.T @ rhs + rhs_pen)
-        resid = _curve_polyline_gap(BSpline(knots, ctrl, k), pts, t)
+        curve = BSpline(knots, ctrl, k)
+        if _backtracks(curve, pts, t):
+            continue
+        resid = _curve_polyline_gap(curve, pts, t)
         if best is None or resid < best[3]:
             best = (knots, ctrl, k, resid)
         if resid <= tolerance:
             break
+    if best is None:
+        # Every smooth fit loops back somewhere (a few points that zigzag along a short edge): the polyline
+        # itself, a degree-1 B-spline through the points, is a valid edge that cannot cross itself.
+        best = (np.concatenate([[0.0, 0.0], t[1:-1], [1.0, 1.0]]), pts.copy(), 1, 0.0)
     knots, ctrl, k, resid = best
     return EdgeCurve("bspline", {"knots": knots, "control_points": ctrl, "degree": int(k)}, resid)
+
+
+def _backtracks(curve, pts, t, *, per_span: int = 4) -> bool:
+    """True where the curve runs against the polyline's local direction (a loop, or a cusp and a turn back).
+
+    The direction is the chord over three segments about each one, so that one noisy point does not count
+    as a reversal. Seen on rocker-arm2500: a cubic through six zigzagging points formed a loop, and the
+    face it bounded was a self-intersecting wire.
+    """
+    n = len(pts)
+    w = np.linspace(0.0, 1.0, per_span, endpoint=False)
+    fine = (t[:-1, None] * (1 - w) + t[1:, None] * w).ravel()
+    seg = np.repeat(np.arange(n - 1), per_span)
+    window = pts[np.minimum(seg + 2, n - 1)] - pts[np.maximum(seg - 1, 0)]
+    tangent = curve.derivative()(fine)
+    return bool(np.any(np.einsum("ij,ij->i", tangent, window) < 0))
 
 
 def _curve_polyline_gap(curve, pts, t, *, per_span: int = 4) -> float:

@@ -167,3 +167,35 @@ def test_edge_spline_through_zigzag_points_stays_near_them():
         assert np.abs(y).max() <= 2.5 * np.abs(pts[:, 1]).max()
         # The residual reported is the curve's real distance from the points, not a 1e-13 interpolation claim.
         assert c.residual >= 0.05
+
+
+def _crosses_itself(xy) -> bool:
+    """Whether the 2D polyline ``xy`` has two non-adjacent segments that properly intersect."""
+    a, b = xy[:-1], xy[1:]
+
+    def orient(p, q, r):
+        return np.sign((q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0]))
+
+    for i in range(len(a) - 2):
+        p, q = a[i], b[i]
+        r, s = a[i + 2 :], b[i + 2 :]
+        hit = (orient(p, q, r) * orient(p, q, s) < 0) & (orient(r, s, p) * orient(r, s, q) < 0)
+        if hit.any():
+            return True
+    return False
+
+
+def test_edge_spline_never_loops_back():
+    """Six projected points of a short edge of rocker-arm2500 (scaled to a unit chord; tolerance likewise):
+    the cubic fitted to them looped, and the face it bounded was a self-intersecting wire. The curve
+    through them must not cross itself (seen in the plane of the points)."""
+    from scipy.interpolate import BSpline
+
+    pts = np.array([[0.0, 0.0, 0.0], [-0.2284, -0.2957, -0.0366], [-0.299, -0.4522, -0.5694],
+                    [-0.268, 0.247, -1.0951], [-0.2836, -0.1997, -0.8314], [-0.1894, -0.623, -0.7589]])
+    c = fit_edge_curve(pts, closed=False, tolerance=0.12)
+    p = c.params
+    q = BSpline(p["knots"], p["control_points"], p["degree"])(np.linspace(0, 1, 400))
+    _, _, vt = np.linalg.svd(pts - pts.mean(axis=0))
+    assert not _crosses_itself((q - pts.mean(axis=0)) @ vt[:2].T)
+    assert np.allclose(q[[0, -1]], pts[[0, -1]])
