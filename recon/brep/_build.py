@@ -62,10 +62,10 @@ FILLING_TIMEOUT = 20.0
 #: must still end in a result (with failed faces) rather than run for hours.
 FILLING_BUDGET = 120.0
 
-#: Sewing tolerance, as a multiple of the model tolerance, when the shell has free edges (the last resort: it
-#: joins faces built on copies of the shared edges or on filling surfaces; more than this, measured up to 100×,
-#: closed no more shells on fandisk-b and rocker-arm2500 and started to merge small edges).
-SEWING_FACTOR = 10.0
+#: Sewing tolerances tried, as multiples of the model tolerance, when the shell has free edges (the last resort:
+#: it joins faces built on copies of the shared edges or on filling surfaces). More than 10×, measured up to
+#: 100×, closed no more shells on fandisk-b and rocker-arm2500 and started to merge small edges.
+SEWING_FACTORS = (1.0, 10.0)
 
 #: Paper §4 / Figure 4: smooth patches grey, linear parts purple, junctions yellow (terminals green, §3).
 KIND_COLOURS = {
@@ -776,24 +776,23 @@ def _assemble(faces, tolerance, open_mesh, warnings):
     for f in faces:
         builder.Add(shell, f)
     if free_edge_count(shell) > 0 and not open_mesh:
-        # Faces that did not use the shared edges (copies, fillings, failures): sew as the last resort. A mesh
-        # of several bodies sews into several shells: their faces go back into one shell, which ShapeFix_Shell
-        # splits by connection below.
-        sew = BRepBuilderAPI_Sewing(SEWING_FACTOR * tolerance)
-        for f in faces:
-            sew.Add(f)
-        sew.Perform()
-        sewn = TopoDS_Shell()
-        builder.MakeShell(sewn)
-        n_faces = 0
-        exp = TopExp_Explorer(sew.SewedShape(), TopAbs_FACE)
-        while exp.More():
-            builder.Add(sewn, exp.Current())
-            n_faces += 1
-            exp.Next()
-        if n_faces:
-            shell = sewn
-            warnings.append(f"shell had free edges; sewn at {SEWING_FACTOR * tolerance:g}")
+        # Faces that did not use the shared edges (copies, fillings, failures): sew as the last resort, at the
+        # smallest tolerance that closes the shell (copies of shared edges need almost none; a wide sewing
+        # merges the small edges of small faces). A mesh of several bodies sews into several shells: their
+        # faces go back into one shell, which ShapeFix_Shell splits by connection below.
+        best = None
+        for factor in SEWING_FACTORS:
+            sewn = _sewn(faces, factor * tolerance)
+            if sewn is None:
+                continue
+            free = free_edge_count(sewn)
+            if best is None or free < best[0]:
+                best = (free, factor, sewn)
+            if free == 0:
+                break
+        if best is not None:
+            shell = best[2]
+            warnings.append(f"shell had free edges; sewn at {best[1] * tolerance:g} ({best[1]:g}× the tolerance)")
         else:
             warnings.append("shell had free edges; sewing returned no face")
     fix = ShapeFix_Shell(shell)
@@ -843,6 +842,24 @@ def _assemble(faces, tolerance, open_mesh, warnings):
         builder.Add(comp, s)
     warnings.append(f"{len(solids)} bodies: the result is a compound")
     return comp
+
+
+def _sewn(faces, tolerance: float):
+    """All ``faces`` sewn at ``tolerance``, back in one shell (``None`` if sewing returned no face)."""
+    sew = BRepBuilderAPI_Sewing(tolerance)
+    for f in faces:
+        sew.Add(f)
+    sew.Perform()
+    builder = BRep_Builder()
+    shell = TopoDS_Shell()
+    builder.MakeShell(shell)
+    n_faces = 0
+    exp = TopExp_Explorer(sew.SewedShape(), TopAbs_FACE)
+    while exp.More():
+        builder.Add(shell, exp.Current())
+        n_faces += 1
+        exp.Next()
+    return shell if n_faces else None
 
 
 def _match_faces(records, final_faces, network):
