@@ -192,6 +192,17 @@ def _error(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray, *, strict: float = 1.0
     return err, ok
 
 
+def _accept(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray) -> np.ndarray:
+    """``_error(ctx, fit, faces)[1]`` (which faces the surface accepts), the normals only where the distance passes."""
+    d = np.abs(fit.distance(ctx.V[ctx.F[faces]].reshape(-1, 3))).reshape(-1, 3)
+    ok = d.max(axis=1) <= ctx.tol
+    idx = np.flatnonzero(ok)
+    if len(idx):
+        n = _normals_at(fit, ctx.centroid[faces[idx]], ctx.eps)
+        ok[idx] = np.abs(np.einsum("ij,ij->i", n, ctx.fn[faces[idx]])) >= ctx.cos
+    return ok
+
+
 def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> float:
     """``max(4 σ, TOL_FLOOR · diag)`` with σ the robust spread of the vertices about the largest smooth components' fits.
 
@@ -231,11 +242,10 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
     size = fitted_size = len(faces)
     while len(frontier):
         nb = ctx.adj[frontier].ravel()
-        nb = np.unique(nb[nb >= 0])
-        nb = nb[allowed[nb] & ~inreg[nb]]
+        nb = nb[nb >= 0]
+        nb = np.unique(nb[allowed[nb] & ~inreg[nb]])
         if len(nb):
-            _, ok = _error(ctx, fit, nb)
-            nb = nb[ok]
+            nb = nb[_accept(ctx, fit, nb)]
         inreg[nb] = True
         if len(nb):
             members.append(nb)
