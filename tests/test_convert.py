@@ -1,6 +1,7 @@
 """`recon convert` end to end: ground truth on a part whose true faces are known, and bad input."""
 
 import json
+from pathlib import Path
 import subprocess
 import sys
 
@@ -73,6 +74,40 @@ def test_python_api_returns_a_build123d_solid_to_keep_modelling():
     # Drill a through hole in the reconstruction: the volume drops by exactly the cylinder's.
     drilled = result.shape - bd.Cylinder(3, 40)
     assert drilled.volume == pytest.approx(6000.0 - np.pi * 9 * 10, rel=1e-6)
+
+
+
+# -- ground truth under noise, and real meshes ------------------------------------------------------------------
+
+MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+
+
+@pytest.mark.parametrize("part", ["box_fillet", "plate_holes", "pocket", "prism"])
+def test_noisy_fixture_converts_to_a_valid_solid_with_about_its_true_faces(part):
+    """Issue 5's noisy target, σ = 0.2 % of the diagonal: a valid closed solid, face count within 15 % of the
+    truth. (box_chamfer, lofted and revolved do not meet the face count yet: bench/RESULTS.md.)"""
+    from recon import convert
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture(part, "noisy20")
+    result = convert((fx.vertices, fx.faces), deviation=False)
+    assert result.brep.validity.ok, result.report["validity"]
+    n_true = len(fx.true_faces)
+    assert abs(result.report["n_faces"] - n_true) <= 0.15 * n_true
+    # The solid is the part within the noise: σ on a part of area A moves the volume by ~σ·A/√n, far below 1 %.
+    assert result.brep.validity.volume == pytest.approx(fx.volume, rel=1e-2)
+
+
+@pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes is absent")
+@pytest.mark.parametrize("name", ["block.off", "joint.off", "abc_00000050.stl"])
+def test_real_mesh_converts_to_valid_solids(name):
+    """Meshes nobody here made: block (one body), joint (genus 2), the ABC model (three bodies → three solids)."""
+    from recon import convert
+
+    result = convert(MESHES / name, deviation=False)
+    val = result.brep.validity
+    assert val.ok, result.report["validity"]
+    assert val.n_solids == (3 if name.startswith("abc") else 1)
 
 
 @pytest.mark.parametrize(
