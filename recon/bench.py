@@ -482,16 +482,35 @@ def _our_face_types(conversion) -> dict:
     return out
 
 
+#: Unit factors by which a mesh file and its true STEP may differ (m, cm, inch against mm).
+UNIT_FACTORS = (10.0, 100.0, 1000.0, 25.4)
+
+
+def unit_factor(mesh_diagonal: float, step_diagonal: float) -> float:
+    """The factor that takes a mesh into its true STEP's units: a unit factor (or its inverse) that the ratio of
+    the two bounding-box diagonals matches within 2 %, else 1. (abc_00000050: the STL is in metres, the STEP
+    in millimetres; compared as they were, every triangle sat 13,000 % of the diagonal from the truth.)"""
+    ratio = step_diagonal / mesh_diagonal
+    for f in UNIT_FACTORS:
+        for c in (f, 1.0 / f):
+            if abs(ratio / c - 1.0) < 0.02:
+                return c
+    return 1.0
+
+
 def _truth_from_step(vertices, faces, step_path) -> tuple:
-    """True face per triangle for a mesh with a true STEP but no labels: the face nearest the centroid."""
+    """True face per triangle for a mesh with a true STEP but no labels: the face nearest the centroid, with
+    the mesh taken into the STEP's units first. Returns the labels, the true face types and that factor."""
     from .brep._distance import BrepDistance
     from .brep._step_read import read_step
 
     shape, _ = read_step(step_path)
     bd = BrepDistance(getattr(shape, "wrapped", shape))
-    centroids = np.asarray(vertices)[np.asarray(faces)].mean(axis=1)
+    vertices = np.asarray(vertices, dtype=np.float64)
+    factor = unit_factor(float(np.linalg.norm(np.ptp(vertices, axis=0))), bd.diagonal)
+    centroids = factor * vertices[np.asarray(faces)].mean(axis=1)
     _, nearest, _ = bd.signed_distance(centroids)
-    return np.asarray(nearest, dtype=np.int64), tuple(bd.types)
+    return np.asarray(nearest, dtype=np.int64), tuple(bd.types), factor
 
 
 def _measure_convert(spec: dict, row: dict) -> dict:
@@ -590,11 +609,14 @@ def _measure_convert(spec: dict, row: dict) -> dict:
     row["stage_peak_mb"] = memory.peaks
 
     # Truth: everything below is measurement, not part of the conversion.
+    factor = 1.0
     if true_labels_input is None and true_step is not None:
         try:
-            true_labels, true_types = _truth_from_step(conv.mesh.vertices, conv.mesh.faces, true_step)
+            true_labels, true_types, factor = _truth_from_step(conv.mesh.vertices, conv.mesh.faces, true_step)
             row["faces_true"] = len(true_types)
             row["types_true"] = _types_text(Counter(true_types))
+            if factor != 1.0:
+                notes.append(f"the true STEP is in other units: the mesh was scaled by {factor:g} to compare")
         except Exception as err:
             true_labels = None
             notes.append(_one_line(f"truth from STEP: {type(err).__name__}: {err}"))
@@ -613,7 +635,7 @@ def _measure_convert(spec: dict, row: dict) -> dict:
         row["type_agreement"] = type_agreement(conv.labels, true_labels, areas, _our_face_types(conv), true_types)
     if true_step is not None:
         try:
-            dev = deviation(conv.mesh.vertices, conv.mesh.faces, true_step)
+            dev = deviation(factor * conv.mesh.vertices, conv.mesh.faces, true_step)
             row.update(_stats_pct(dev.mesh_to_shape.to_json(), "true_m2s"))
             row.update(_stats_pct(dev.shape_to_mesh.to_json(), "true_s2m"))
         except Exception as err:

@@ -73,3 +73,13 @@ def test_run_writes_both_files_and_failures_become_rows(tmp_path):
     assert "`mesh/bad` — error: load:" in md
     for key in COLUMNS:
         assert f"- `{key}`:" in md
+
+
+def test_unit_factor_takes_a_mesh_into_its_step_units():
+    from recon.bench import unit_factor
+
+    # abc_00000050: STL in metres (diagonal 0.135), STEP in millimetres (135).
+    assert unit_factor(0.1349, 134.9) == 1000.0
+    assert unit_factor(10.0, 254.0) == 25.4  # inches → mm
+    assert unit_factor(254.0, 10.0) == pytest.approx(1 / 25.4)
+    assert unit_factor(1.0, 1.01) == 1.0 and unit_factor(1.0, 1.5) == 1.0  # same units, or no unit step
