@@ -209,6 +209,39 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     return labels, fits
 
 
+def _cut_unbounded(mesh: Mesh, labels: np.ndarray) -> np.ndarray:
+    """Labels with every closed body that one label covers cut in two (``labels`` itself if there is none).
+
+    A face needs a boundary, and a closed body covered by one smooth part (a sphere, an ellipsoid, a coarse
+    free-form part) has none: no edge bounds it, and the B-rep has nothing to build on. Cutting the body by
+    the plane through its centroid across its longest principal axis gives two parts sharing one loop, the
+    least a closed surface needs (OpenCascade's own sphere has a seam); each half is fitted like any part.
+    """
+    pairs = _faces_adjacency(mesh)
+    body = _split_disconnected(np.zeros(len(labels), dtype=np.int64), pairs)
+    out = labels
+    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, edge_count = np.unique(edges, axis=0, return_counts=True)
+    if np.any(edge_count == 1):  # an open mesh: its boundary bounds its faces
+        return labels
+    for b in np.unique(body):
+        tris = np.flatnonzero(body == b)
+        if len(np.unique(labels[tris])) > 1:
+            continue
+        c = mesh.face_centroids[tris]
+        w = mesh.face_areas[tris]
+        centre = np.average(c, axis=0, weights=w)
+        _, _, vt = np.linalg.svd((c - centre) * np.sqrt(w)[:, None], full_matrices=False)
+        side = (c - centre) @ vt[0] > 0
+        if side.all() or not side.any():
+            continue
+        if out is labels:
+            out = labels.copy()
+        out[tris[side]] = out.max() + 1
+        log.info("a closed body is one smooth part: cut in two across its longest axis to give its faces an edge")
+    return out if out is labels else _tidy(mesh, out)
+
+
 def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
     k = int(labels.max()) + 1
     pairs = np.unique(np.column_stack([np.repeat(labels, 3), faces.ravel()]), axis=0)
@@ -323,6 +356,10 @@ def convert(
     if merged.max() < labels.max():
         log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
         labels = _tidy(mesh, merged)
+        fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    cut = _cut_unbounded(mesh, labels)
+    if cut is not labels:
+        labels = cut
         fits = _fit_parts(mesh, labels, tolerance=tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)

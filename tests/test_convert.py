@@ -129,3 +129,15 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path, make_args, me
     err = proc.stderr.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("recon convert: error:") and message in err[0], proc.stderr
     assert set(tmp_path.iterdir()) == before
+
+
+def test_sphere_one_smooth_part_becomes_a_solid():
+    """A closed body that one smooth part covers has no edge to bound a face with (it raised BrepError). Cut in
+    two, it is two sphere faces on one seam loop; the vertices lie on the sphere, so the volume is 4/3 π r³."""
+    from recon import convert
+
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
+    result = convert((mesh.vertices, mesh.faces), deviation=False)
+    assert result.brep.validity.ok
+    assert result.report["faces_by_type"] == {"sphere": 2}
+    assert result.brep.validity.volume == pytest.approx(4 / 3 * np.pi * 1000.0, rel=1e-5)
