@@ -369,7 +369,9 @@ def convert(
     kinds = _face_kinds(dec, labels)
     network = curve_network(mesh.vertices, mesh.faces, labels)
     try:
-        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds)
+        areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
+        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
+                           part_areas={p: float(a) for p, a in enumerate(areas)})
     except BrepError:
         raise
     times["brep"] = time.perf_counter() - t

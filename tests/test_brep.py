@@ -298,3 +298,16 @@ def test_no_face_at_all_is_one_clear_error(sharp_box, monkeypatch):
     none = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0, ok=False, reason="test")
     with pytest.raises(BrepError, match="none of the 6 parts got a face"):
         build_solid(curve_network(v, f, lab), {p: none for p in range(6)}, tolerance=0.01)
+
+
+def test_a_face_far_larger_than_its_part_of_the_mesh_is_named(sharp_box):
+    """A face whose area is off its part's mesh area by more than 2× may reach far from the mesh (a ballooning
+    filling face on abc_00000050 had 24×): the warnings name it. The box's faces have their true areas."""
+    v, f, lab = sharp_box
+    fits = _fits_by_label(v, f, lab, 0.01)
+    true = {0: 200.0, 1: 200.0, 2: 300.0, 3: 300.0, 4: 600.0, 5: 600.0}  # 30 × 20 × 10, labels by axis and sign
+    res = build_solid(curve_network(v, f, lab), fits, tolerance=0.01, part_areas=true)
+    assert res.ok and not any("area of its part" in w for w in res.warnings)
+    res = build_solid(curve_network(v, f, lab), fits, tolerance=0.01, part_areas={**true, 4: 100.0})
+    named = [w for w in res.warnings if "area of its part" in w]
+    assert len(named) == 1 and named[0].startswith("patch_4:") and "6×" in named[0]

@@ -73,6 +73,12 @@ PRECISION_SHARE = 0.1
 #: 100×, closed no more shells on fandisk-b and rocker-arm2500 and started to merge small edges.
 SEWING_FACTORS = (1.0, 10.0)
 
+#: A face whose area differs from its part's mesh area by more than this factor either way gets a warning: a
+#: MakeFilling surface can balloon between its constraints (abc_00000050: a filling face of 24× its part's area,
+#: 96 % of the diagonal away from the mesh, in a solid BRepCheck calls valid). Refusing such faces was measured
+#: too: abc lost its validity (a hole instead), nothing else changed, so it is reported rather than refused.
+AREA_RATIO_WARNING = 2.0
+
 #: Paper §4 / Figure 4: smooth patches grey, linear parts purple, junctions yellow (terminals green, §3).
 KIND_COLOURS = {
     "patch": (0.75, 0.75, 0.75),
@@ -631,7 +637,8 @@ def _fallback_face(loops, edges, points, normals, context, *, precision: float, 
 
 
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
-                part_kinds: Mapping[int, str] | None = None) -> BrepResult:
+                part_kinds: Mapping[int, str] | None = None,
+                part_areas: Mapping[int, float] | None = None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
@@ -645,6 +652,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         Model tolerance (model units): lines/circles are kept for edges within it; sewing uses 10× it.
     part_kinds : mapping part id → "patch" | "linear" | "junction" | "terminal", optional
         Names and colours faces as in the paper (``"patch_3"``, ``"linear_7"``); default ``"patch"``.
+    part_areas : mapping part id → float, optional
+        The mesh area of each part. A face whose area is off it by more than :data:`AREA_RATIO_WARNING` either
+        way is named in the warnings.
 
     Returns
     -------
@@ -766,6 +776,10 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         own = status in ("ok", "ok-sewn", "poor", "poor-sewn")
         surface_type = model.kind if own else "bspline" if face is not None else (
             model.kind if model is not None else "none")
+        expected = (part_areas or {}).get(p)
+        if face is not None and expected and not 1 / AREA_RATIO_WARNING <= area / expected <= AREA_RATIO_WARNING:
+            warnings.append(f"{name}: its {surface_type} face has {area / expected:.3g}× the area of its part of "
+                            "the mesh: it may reach far from the mesh (see the deviation)")
         records.append(FaceRecord(p, name, kind, surface_type, status, area, face, msg))
         if face is not None:
             faces.append(face)
