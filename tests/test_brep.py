@@ -311,3 +311,26 @@ def test_a_face_far_larger_than_its_part_of_the_mesh_is_named(sharp_box):
     res = build_solid(curve_network(v, f, lab), fits, tolerance=0.01, part_areas={**true, 4: 100.0})
     named = [w for w in res.warnings if "area of its part" in w]
     assert len(named) == 1 and named[0].startswith("patch_4:") and "6×" in named[0]
+
+
+def test_periodic_bspline_fit_is_the_same_surface_in_opencascade():
+    """A fit periodic in u (issue #4) becomes a u-periodic Geom_BSplineSurface with the same points: recon's
+    extended knots and OpenCascade's own periodic extension must put each pole under the same basis function."""
+    from recon.brep import surface_model
+    from recon.fit import BSplineSurface, fit_bspline_surface
+
+    t, z = np.meshgrid(np.linspace(0, 2 * np.pi, 72, endpoint=False), np.linspace(0, 20, 21), indexing="ij")
+    pts = np.column_stack([((15 + 2 * np.cos(3 * t)) * np.cos(t)).ravel(), (9 * np.sin(t)).ravel(), z.ravel()])
+    idx = np.arange(t.size).reshape(t.shape)
+    idx = np.vstack([idx, idx[:1]])
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    fit = fit_bspline_surface(pts, faces=np.r_[np.column_stack([a, b, c]), np.column_stack([a, c, d])], tolerance=0.02)
+    assert fit and fit.params["periodic_u"]
+    geom = surface_model(fit).geom
+    assert geom.IsUPeriodic() and not geom.IsVPeriodic()
+    ours = BSplineSurface.from_params(fit.params)
+    rng = np.random.default_rng(5)
+    (u0, u1), (v0, v1) = ours.domain
+    u, v = rng.uniform(u0, u1, 100), rng.uniform(v0, v1, 100)
+    occ = np.array([[geom.Value(a, b).X(), geom.Value(a, b).Y(), geom.Value(a, b).Z()] for a, b in zip(u, v)])
+    assert np.abs(occ - ours.evaluate(u, v)).max() <= 1e-9

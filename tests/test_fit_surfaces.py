@@ -16,6 +16,7 @@ from scipy.interpolate import BSpline
 
 from recon.errors import FitError
 from recon.fit import (
+    BSplineSurface,
     Cone,
     Cylinder,
     Plane,
@@ -350,10 +351,66 @@ def test_bspline_harmonic_map_for_non_height_field():
     assert fit.deviation["p99"] <= TOL
 
 
-def test_bspline_refuses_wraparound_patch():
-    pts, faces = _grid_mesh(2 * np.pi, closed=True)
+def _wavy_tube(rng, nt=96, nz=30, sigma=SIGMA):
+    """A closed band around z (issue #4): an elliptic section whose minor axis ripples three times a turn and
+    whose major axis swells with height, so no cylinder, cone or torus fits it. Clean and noisy vertices, faces."""
+    t = np.linspace(0, 2 * np.pi, nt, endpoint=False)
+    z = np.linspace(0, 30, nz)
+    tt, zz = np.meshgrid(t, z, indexing="ij")
+    a, b = 20 + 3 * np.sin(zz / 10), 12 + 2 * np.cos(3 * tt)
+    clean = np.column_stack([(a * np.cos(tt)).ravel(), (b * np.sin(tt)).ravel(), zz.ravel()])
+    idx = np.arange(nt * nz).reshape(nt, nz)
+    idx = np.vstack([idx, idx[:1]])  # the band closes on itself: the last column is the first
+    p, q, r, s = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.r_[np.column_stack([p, q, r]), np.column_stack([p, r, s])]
+    return clean, add_noise(clean, sigma, rng), faces
+
+
+def test_bspline_periodic_band_within_two_sigma():
+    """Issue #4: a patch that wraps all the way round is fitted as a B-spline periodic in u, like a height field."""
+    rng = np.random.default_rng(23)
+    clean, pts, faces = _wavy_tube(rng)
     fit = fit_bspline_surface(pts, faces=faces, tolerance=TOL)
-    assert not fit and "wrap-around" in fit.reason
+    assert fit, fit.reason
+    assert fit.params["periodic_u"] and not fit.params["periodic_v"]
+    # least squares leaves the noise as its residual (RMS ≈ σ); 2σ is the same bound as the height field's
+    assert fit.deviation["rms"] <= 2 * SIGMA
+    # and averages it out against the noise-free surface: under σ
+    assert np.sqrt(np.mean(fit.distance(clean) ** 2)) <= SIGMA
+    surf = BSplineSurface.from_params(fit.params)
+    cp = np.array(fit.params["control_points"])
+    assert len(fit.params["knots_u"]) == cp.shape[0] + 2 * fit.params["degree_u"] + 1
+    # closed with no seam: the surface and its u-derivative agree on both sides of u = 0 ≡ 2π
+    (u0, u1), (v0, v1) = surf.domain
+    v = np.linspace(v0, v1, 7)
+    s0, su0, _ = surf.derivatives(np.full(7, u0), v)
+    s1, su1, _ = surf.derivatives(np.full(7, u1 - 1e-12), v)
+    assert np.abs(s0 - s1).max() <= 1e-9 and np.abs(su0 - su1).max() <= 1e-6 * np.abs(su0).max()
+
+
+def test_bspline_periodic_band_under_rigid_motion():
+    """The cylindrical parametrisation takes its axis from the loops, not from the coordinate axes."""
+    rng = np.random.default_rng(24)
+    clean, pts, faces = _wavy_tube(rng)
+    rot = random_rotation(rng)
+    fit = fit_bspline_surface(pts @ rot.T + 40.0, faces=faces, tolerance=TOL)
+    assert fit and fit.params["periodic_u"]
+    assert np.sqrt(np.mean(fit.distance(clean @ rot.T + 40.0) ** 2)) <= SIGMA
+
+
+def test_bspline_refuses_a_closed_torus():
+    """A torus has no boundary loop: neither a disk nor a band, it is the analytic fitters' job."""
+    nt, npf = 48, 24
+    t, f = np.meshgrid(np.linspace(0, 2 * np.pi, nt, endpoint=False), np.linspace(0, 2 * np.pi, npf, endpoint=False),
+                       indexing="ij")
+    pts = np.column_stack([((10 + 3 * np.cos(f)) * np.cos(t)).ravel(), ((10 + 3 * np.cos(f)) * np.sin(t)).ravel(),
+                           (3 * np.sin(f)).ravel()])
+    idx = np.arange(nt * npf).reshape(nt, npf)
+    idx = np.hstack([np.vstack([idx, idx[:1]]), np.vstack([idx, idx[:1]])[:, :1]])
+    p, q, r, s = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.r_[np.column_stack([p, q, r]), np.column_stack([p, r, s])]
+    fit = fit_bspline_surface(pts, faces=faces, tolerance=TOL)
+    assert not fit and "band around an axis" in fit.reason
 
 
 # ------------------------------------------------------------------------------------------------ blends

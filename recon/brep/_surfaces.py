@@ -280,6 +280,11 @@ def _bspline_surface(p: dict) -> Geom_BSplineSurface:
             m.SetValue(i, int(c))
         return a, m
 
+    periodic_u = bool(p.get("periodic_u", False))
+    if periodic_u:
+        # recon's periodic knots run `degree` spans past the domain on each side; OpenCascade takes the domain's
+        # knots only (all of multiplicity 1) and repeats the n poles itself, pole i under the same basis function
+        ku = ku[du : len(ku) - du]
     poles = TColgp_Array2OfPnt(1, ctrl.shape[0], 1, ctrl.shape[1])
     for i in range(ctrl.shape[0]):
         for j in range(ctrl.shape[1]):
@@ -287,7 +292,7 @@ def _bspline_surface(p: dict) -> Geom_BSplineSurface:
     uk, um = knots(ku)
     vk, vm = knots(kv)
     try:
-        return Geom_BSplineSurface(poles, uk, vk, um, vm, du, dv)
+        return Geom_BSplineSurface(poles, uk, vk, um, vm, du, dv, periodic_u, False)
     except Exception as err:  # OCC raises Standard_ConstructionError on inconsistent knots/poles
         raise BrepError(f"bspline surface fit: OpenCascade rejected knots/poles ({err})") from err
 

@@ -107,8 +107,10 @@ class SurfaceFit(_Fit):
           and ``ref_point``/``ref_radius``: the axis point at the patch's mean height and the cone radius there
           (``gp_Cone`` wants a location with a radius; the apex is a singular point to keep away from)
         - torus: ``center``, ``axis_dir``, ``major_radius``, ``minor_radius``
-        - bspline: ``degree_u``, ``degree_v``, ``knots_u``, ``knots_v`` (full clamped knot vectors),
-          ``control_points`` (nu, nv, 3) nested lists, ``periodic_u``/``periodic_v`` (always False)
+        - bspline: ``degree_u``, ``degree_v``, ``knots_u``, ``knots_v`` (full clamped knot vectors; when
+          ``periodic_u``, ``knots_u`` are uniform and run ``degree_u`` spans past the domain on each side),
+          ``control_points`` (nu, nv, 3) nested lists, ``periodic_u`` (a band closed round an axis),
+          ``periodic_v`` (always False)
     deviation : dict
         ``{"max", "rms", "p99"}`` of |distance| over the fitted points (NaN when nothing was fitted).
     n_points : int
