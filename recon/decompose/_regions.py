@@ -14,7 +14,11 @@ not the triangle size:
    same way, and triangles on the borders between regions move to the neighbour whose surface is closer;
 4. a curved region tangent to two or more neighbours is a *blend*: it goes back to the critical region, whose
    skeleton (§2–3) makes it a linear part or a junction. A curved region meeting its neighbours at sharp
-   edges (a through hole, a boss) is a primary face and stays a patch.
+   edges (a through hole, a boss) is a primary face and stays a patch;
+5. a free-form face curved everywhere at the smoothing window's scale (a loft) has no smooth component and
+   comes out of 2–4 as many small tangent curved regions, all "blends": a connected set of them that meets
+   the faces around it at sharp edges, is smooth inside and has one B-spline's topology is one free-form
+   patch (:func:`_free_forms`).
 
 Tolerances: ``tolerance`` is a distance (default ``max(4 σ, 5e-4 · diagonal)``, see :data:`TOL_FLOOR`);
 ``angle`` the largest normal deviation a triangle of the surface shows under the noise.
@@ -52,6 +56,15 @@ REFIT_GROWTH = 1.6
 TANGENT_DEG = 20.0
 #: Share of a component that split regions must cover for the split to be kept (else: one free-form patch).
 MIN_SPLIT_COVER = 0.5
+#: A primary region enclosed by a free-form component and tangent to it is part of it when it has less than this
+#: share of the component's area (the lofted side's stray cylinders have about 1 %).
+ISLAND_SHARE = 0.2
+#: A free-form face is one that the analytic fitters could only tile: at least this many curved regions in it.
+MIN_TILES = 3
+#: ... and it is smooth: at most this share of the borders between its tiles (in mesh edges) meet at TANGENT_DEG or
+#: more. Measured: lofted 0 (clean, noisy05, open) and 0.027 (noisy20); revolved/noisy20's side, a cylinder, a cone
+#: and a torus with two 37° creases between them, 0.24.
+MAX_CREASE_SHARE = 0.1
 #: Surface types of blends (a planar chamfer stays in the critical region unless its own smooth component fits).
 CURVED = ("sphere", "cylinder")
 #: Distance tolerance of the patches' first growth into the critical region, in tolerances (4σ → 1.5σ).
@@ -447,6 +460,177 @@ def _blends(ctx: _Ctx, label: np.ndarray, fits: list) -> np.ndarray:
     return curved & (tangent.sum(axis=1) >= 2)
 
 
+def _angles(n: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Angles in degrees between the unsigned unit normals ``n`` and ``m`` (k, 3)."""
+    return np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, m)), 0.0, 1.0)))
+
+
+def _islands(ctx: _Ctx, label, fits, prim, comp, area) -> dict:
+    """{primary region: the components it joins} for the primaries that are pieces of a free-form component.
+
+    A primary region tangent all round to the non-primary triangles it borders (median angle < TANGENT_DEG
+    between its surface's normal and their smoothed normals) and small beside them (under ISLAND_SHARE of the
+    largest component it touches) is a patch that an analytic surface happened to cover on a free-form face
+    (the lofted side's stray cylinders: about 1 % of it each). A primary tangent to a primary that is not an
+    island (a face and its fillet's neighbour) is not one either. The raw triangle normals would carry the
+    noise (σ = 0.2 % of the diagonal turns them by 10–20°): the smoothed vertex normals stand in for them.
+    """
+    f, g, e = ctx.pairs[:, 0], ctx.pairs[:, 1], ctx.pairs[:, 2]
+    mid = 0.5 * (ctx.V[ctx.edges[e, 0]] + ctx.V[ctx.edges[e, 1]])
+    bf, bg = prim[f] & ~prim[g], prim[g] & ~prim[f]
+    ptri, otri, bedge = np.r_[f[bf], g[bg]], np.r_[g[bf], f[bg]], np.r_[e[bf], e[bg]]
+    other = ctx.vn[ctx.edges[bedge, 0]] + ctx.vn[ctx.edges[bedge, 1]]
+    other /= np.maximum(np.linalg.norm(other, axis=1, keepdims=True), 1e-300)
+    preg = label[ptri]
+    comp_area = np.bincount(comp[comp >= 0], weights=area[comp >= 0], minlength=len(label))
+    reg_area = np.bincount(label[label >= 0], weights=area[label >= 0], minlength=len(fits))
+    island = {}
+    for r in np.unique(preg):
+        s = preg == r
+        at = 0.5 * (ctx.V[ctx.edges[bedge[s], 0]] + ctx.V[ctx.edges[bedge[s], 1]])
+        ang = _angles(surface_normals(fits[r], at), other[s])
+        cs = np.unique(comp[otri[s]])
+        if np.median(ang) < TANGENT_DEG and reg_area[r] < ISLAND_SHARE * comp_area[cs].max():
+            island[int(r)] = cs
+    pp = np.flatnonzero(prim[f] & prim[g] & (label[f] != label[g]))
+    pa, pb = np.minimum(label[f[pp]], label[g[pp]]), np.maximum(label[f[pp]], label[g[pp]])
+    tangent = []
+    for a, b in np.unique(np.column_stack([pa, pb]), axis=0).tolist():
+        s = pp[(pa == a) & (pb == b)]
+        if np.median(_angles(surface_normals(fits[a], mid[s]), surface_normals(fits[b], mid[s]))) < TANGENT_DEG:
+            tangent.append((a, b))
+    changed = True
+    while changed:
+        changed = False
+        for a, b in tangent:
+            if (a in island) != (b in island):
+                island.pop(a, None)
+                island.pop(b, None)
+                changed = True
+    return island
+
+
+def _topology_of(ctx: _Ctx, faces: np.ndarray, mesh_border: np.ndarray) -> tuple[int, int, int]:
+    """Euler characteristic, boundary loops, and how many of those run along the mesh's own border (holes)."""
+    tri = ctx.F[faces]
+    ed = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    ue, cnt = np.unique(ed, axis=0, return_counts=True)
+    chi = len(np.unique(tri)) - len(ue) + len(faces)
+    be = ue[cnt == 1]
+    if not len(be):
+        return chi, 0, 0
+    nv = len(ctx.V)
+    _, loop = connected_components(sp.coo_matrix((np.ones(len(be)), (be[:, 0], be[:, 1])), shape=(nv, nv)),
+                                   directed=False)
+    loop_of = loop[be[:, 0]]
+    holes = np.unique(loop_of[np.isin(be[:, 0] * np.int64(nv) + be[:, 1], mesh_border)])
+    return chi, len(np.unique(loop_of)), len(holes)
+
+
+def _crease_share(label, fits, inside, f, g, mid) -> float:
+    """Share of the mesh edges between two fitted regions inside ``inside`` where their surfaces meet at
+    TANGENT_DEG or more (median over each pair's shared border)."""
+    both = np.flatnonzero(inside[f] & inside[g] & (label[f] != label[g]) & (label[f] >= 0) & (label[g] >= 0))
+    la, lb = np.minimum(label[f[both]], label[g[both]]), np.maximum(label[f[both]], label[g[both]])
+    sharp = measured = 0
+    for x, y in np.unique(np.column_stack([la, lb]), axis=0).tolist():
+        if fits[x].type == "free" or fits[y].type == "free":
+            continue  # no surface to measure; a free region of step 1 is smooth by construction
+        sel = both[(la == x) & (lb == y)]
+        measured += len(sel)
+        if np.median(_angles(surface_normals(fits[x], mid[sel]), surface_normals(fits[y], mid[sel]))) >= TANGENT_DEG:
+            sharp += len(sel)
+    return sharp / max(measured, 1)
+
+
+def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, area: np.ndarray, min_area: float):
+    """The free-form faces among the critical region and the blends: a list of (k,) triangle arrays.
+
+    Step 1 keeps a smooth component no analytic surface explains as one free-form patch, but a free-form face
+    curved everywhere at the scale of the smoothing window (the lofted side: 0.6 % of it smooth on the clean
+    mesh) has no smooth component: the seeds tile it with small cylinders, each tangent to its neighbours and so
+    a "blend", and the skeleton cuts the lot into some forty parts. What tells it from a network of fillets is
+    how it meets the faces around it: a fillet is tangent to the faces it joins, this face meets them at sharp
+    edges. A connected set of non-primary triangles (critical or blend, joined through :func:`_islands`) is
+    one face when
+
+    (a) it meets at least one primary region, and every one at an angle ≥ TANGENT_DEG (median over the border);
+    (b) it is one B-spline's worth of topology: genus 0 with one or two boundary loops besides the mesh's own
+        holes (a disk, or a band that the periodic fit closes round);
+    (c) curved regions cover at least MIN_SPLIT_COVER of its area (step 1's rule) and at least MIN_TILES of
+        them: the analytic fitters could only tile it;
+    (d) its area is at least ``min_area``;
+    (e) it is smooth inside: at most MAX_CREASE_SHARE of the borders between its tiles are sharp (a chain of
+        analytic faces with creases between them, revolved/noisy20's side, is not one free-form face).
+    """
+    m, k = len(label), len(fits)
+    f, g, e = ctx.pairs[:, 0], ctx.pairs[:, 1], ctx.pairs[:, 2]
+    # a free-form region of step 1 is a piece of whatever free-form face it lies in
+    is_primary = ~blend & np.array([ft.type != "free" for ft in fits], bool)
+    prim = (label >= 0) & is_primary[np.maximum(label, 0)]
+    keep = ~prim[f] & ~prim[g]
+    _, comp = connected_components(sp.coo_matrix((np.ones(int(keep.sum()), np.int8), (f[keep], g[keep])), shape=(m, m)),
+                                   directed=False)
+    comp = np.where(prim, -1, comp)
+    island = _islands(ctx, label, fits, prim, comp, area)
+    # components joined through islands: a graph on components (nodes 0..m-1) and islands (nodes m + region)
+    group = np.arange(m + k)
+    if island:
+        a = np.concatenate([np.full(len(cs), m + r) for r, cs in island.items()])
+        b = np.concatenate(list(island.values()))
+        _, group = connected_components(sp.coo_matrix((np.ones(len(a), np.int8), (a, b)), shape=(m + k, m + k)),
+                                        directed=False)
+    merged = np.where(comp >= 0, group[np.maximum(comp, 0)], -1)
+    for r in island:
+        merged[label == r] = group[m + r]
+    nv = len(ctx.V)
+    inner = np.zeros(len(ctx.edges), bool)
+    inner[e] = True
+    mesh_border = ctx.edges[~inner, 0] * np.int64(nv) + ctx.edges[~inner, 1]
+    mid = 0.5 * (ctx.V[ctx.edges[e, 0]] + ctx.V[ctx.edges[e, 1]])
+    smooth_n = ctx.vn[ctx.edges[e, 0]] + ctx.vn[ctx.edges[e, 1]]
+    smooth_n /= np.maximum(np.linalg.norm(smooth_n, axis=1, keepdims=True), 1e-300)
+    curved_region = np.array([ft.type != "plane" for ft in fits], bool)
+    out = []
+    for c in np.unique(merged[merged >= 0]):
+        faces = np.flatnonzero(merged == c)
+        a = float(area[faces].sum())
+        lab = label[faces]
+        curved = (lab >= 0) & curved_region[np.maximum(lab, 0)]
+        tiles = len(np.unique(lab[curved]))
+        if a < min_area or tiles < MIN_TILES or area[faces[curved]].sum() < MIN_SPLIT_COVER * a:
+            continue
+        inside = merged == c
+        # (a): the primary regions it borders, each by its median angle. Inside, the normal is that of the tile
+        # the border triangle lies on where it has one (the smoothed normals blur a tangent border with a small
+        # radius: revolved/noisy05's torus met its plane at 19.5° by them), else the smoothed one
+        border = np.flatnonzero(inside[f] != inside[g])
+        out_tri = np.where(inside[f[border]], g[border], f[border])
+        in_tri = np.where(inside[f[border]], f[border], g[border])
+        own = smooth_n[border]
+        for r in np.unique(label[in_tri]):
+            if r >= 0 and fits[r].type != "free":
+                sel = label[in_tri] == r
+                own[sel] = surface_normals(fits[r], mid[border[sel]])
+        angles = {}
+        for r in np.unique(label[out_tri]):
+            if r < 0:  # cannot happen (unclaimed triangles are in some component); count it as tangent
+                angles[-1] = 0.0
+                continue
+            sel = label[out_tri] == r
+            angles[int(r)] = float(np.median(_angles(surface_normals(fits[r], mid[border[sel]]), own[sel])))
+        chi, loops, holes = _topology_of(ctx, faces, mesh_border)
+        crease = _crease_share(label, fits, inside, f, g, mid)
+        ok = (bool(angles) and min(angles.values()) >= TANGENT_DEG and chi == 2 - loops and loops - holes in (1, 2)
+              and crease <= MAX_CREASE_SHARE)
+        log.debug("free-form candidate: %d triangles, area %.4g, %d curved tiles, chi %d, %d loops (%d holes), "
+                  "border angles %s, %.3f of the tile borders sharp: %s", len(faces), a, tiles, chi, loops, holes,
+                  {r: round(v, 1) for r, v in angles.items()}, crease, ok)
+        if ok:
+            out.append(faces)
+    return out
+
+
 def fitted_regions(
     V, F, *, adj, pairs, edges, smooth, priority, vnormal, area, tolerance, noise, angle, min_area, diag
 ) -> Regions:
@@ -554,6 +738,19 @@ def fitted_regions(
     label = lut[label]  # −1 maps through the last slot
     fits = [fits[i] for i in alive]
     blend = _blends(ctx, label, fits) if fits else np.zeros(0, bool)
+    # 5. free-form faces the fitters tiled with curved pieces: one free region each (the B-spline fits it)
+    free = _free_forms(ctx, label, fits, blend, area, min_area) if fits else []
+    if free:
+        for faces in free:
+            label[faces] = len(fits)
+            fits.append(SurfaceFit("free", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(faces)))
+        blend = np.r_[blend, np.zeros(len(free), bool)]
+        alive = np.unique(label[label >= 0])
+        lut = np.full(len(fits) + 1, -1, np.int64)
+        lut[alive] = np.arange(len(alive))
+        label = lut[label]
+        fits, blend = [fits[i] for i in alive], blend[alive]
+        log.info("%d free-form faces tiled by curved regions: kept whole", len(free))
     log.info(
         "%d fitted regions (%s), %d blends, %d of %d triangles unclaimed",
         len(fits), ", ".join(sorted({f.type for f in fits})), int(blend.sum()), int((label < 0).sum()), m,
