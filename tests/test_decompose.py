@@ -103,16 +103,18 @@ def test_fixture_face_recovery(part, variant, target):
     assert r.recovered >= target
 
 
-@pytest.mark.parametrize("variant", ["clean", "noisy05", "open"])
-def test_lofted_side_is_one_free_form_patch(variant):
+@pytest.mark.parametrize("variant, mean_iou", [("clean", 1.0), ("noisy05", 1.0), ("open", 1.0), ("noisy20", 0.99)])
+def test_lofted_side_is_one_free_form_patch(variant, mean_iou):
     """Issue #4: the lofted side is curved everywhere at the smoothing window's scale (0.6 % of it smooth on
     the clean mesh), so the seeds tile it with some forty small cylinders that all count as blends. It meets
-    the two planes at sharp edges, as no fillet network does: it is one patch, and the parts are the true faces."""
+    the two planes at sharp edges, as no fillet network does: it is one patch, and the parts are the true faces
+    (the very triangles of each; at σ = 0.2 % of the diagonal a few triangles on the wrong side of an edge,
+    measured 4 of the top plane's 898, mean IoU 0.9986)."""
     fx = _fixture("lofted", variant)
     d = decompose((fx.vertices, fx.faces))
     assert d.counts() == {"patch": 3, "junction": 0, "linear": 0, "terminal": 0}
     r = face_recovery(d.labels, fx.labels, _areas(fx.vertices, fx.faces))
-    assert r.recovered == 1.0 and r.mean_iou == 1.0  # the very triangles of each true face
+    assert r.recovered == 1.0 and r.mean_iou >= mean_iou
 
 
 def _same_partition(a, b):

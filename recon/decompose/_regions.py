@@ -465,7 +465,21 @@ def _angles(n: np.ndarray, m: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", n, m)), 0.0, 1.0)))
 
 
-def _islands(ctx: _Ctx, label, fits, prim, comp, area) -> dict:
+def _tangent_pairs(ctx: _Ctx, label, fits, prim) -> list:
+    """Pairs (a, b), a < b, of neighbouring primary regions whose surfaces meet at under TANGENT_DEG."""
+    f, g, e = ctx.pairs[:, 0], ctx.pairs[:, 1], ctx.pairs[:, 2]
+    pp = np.flatnonzero(prim[f] & prim[g] & (label[f] != label[g]))
+    mid = 0.5 * (ctx.V[ctx.edges[e[pp], 0]] + ctx.V[ctx.edges[e[pp], 1]])
+    pa, pb = np.minimum(label[f[pp]], label[g[pp]]), np.maximum(label[f[pp]], label[g[pp]])
+    tangent = []
+    for a, b in np.unique(np.column_stack([pa, pb]), axis=0).tolist():
+        s = (pa == a) & (pb == b)
+        if np.median(_angles(surface_normals(fits[a], mid[s]), surface_normals(fits[b], mid[s]))) < TANGENT_DEG:
+            tangent.append((a, b))
+    return tangent
+
+
+def _islands(ctx: _Ctx, label, fits, prim, comp, area, tangent) -> dict:
     """{primary region: the components it joins} for the primaries that are pieces of a free-form component.
 
     A primary region tangent all round to the non-primary triangles it borders (median angle < TANGENT_DEG
@@ -476,7 +490,6 @@ def _islands(ctx: _Ctx, label, fits, prim, comp, area) -> dict:
     noise (σ = 0.2 % of the diagonal turns them by 10–20°): the smoothed vertex normals stand in for them.
     """
     f, g, e = ctx.pairs[:, 0], ctx.pairs[:, 1], ctx.pairs[:, 2]
-    mid = 0.5 * (ctx.V[ctx.edges[e, 0]] + ctx.V[ctx.edges[e, 1]])
     bf, bg = prim[f] & ~prim[g], prim[g] & ~prim[f]
     ptri, otri, bedge = np.r_[f[bf], g[bg]], np.r_[g[bf], f[bg]], np.r_[e[bf], e[bg]]
     other = ctx.vn[ctx.edges[bedge, 0]] + ctx.vn[ctx.edges[bedge, 1]]
@@ -492,13 +505,6 @@ def _islands(ctx: _Ctx, label, fits, prim, comp, area) -> dict:
         cs = np.unique(comp[otri[s]])
         if np.median(ang) < TANGENT_DEG and reg_area[r] < ISLAND_SHARE * comp_area[cs].max():
             island[int(r)] = cs
-    pp = np.flatnonzero(prim[f] & prim[g] & (label[f] != label[g]))
-    pa, pb = np.minimum(label[f[pp]], label[g[pp]]), np.maximum(label[f[pp]], label[g[pp]])
-    tangent = []
-    for a, b in np.unique(np.column_stack([pa, pb]), axis=0).tolist():
-        s = pp[(pa == a) & (pb == b)]
-        if np.median(_angles(surface_normals(fits[a], mid[s]), surface_normals(fits[b], mid[s]))) < TANGENT_DEG:
-            tangent.append((a, b))
     changed = True
     while changed:
         changed = False
@@ -544,7 +550,8 @@ def _crease_share(label, fits, inside, f, g, mid) -> float:
 
 
 def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, area: np.ndarray, min_area: float):
-    """The free-form faces among the critical region and the blends: a list of (k,) triangle arrays.
+    """The free-form faces among the critical region and the blends: a list of ((k,) triangles, {region: triangles
+    it hands to that region}) (see :func:`_rounded_edges`).
 
     Step 1 keeps a smooth component no analytic surface explains as one free-form patch, but a free-form face
     curved everywhere at the scale of the smoothing window (the lofted side: 0.6 % of it smooth on the clean
@@ -572,7 +579,9 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
     _, comp = connected_components(sp.coo_matrix((np.ones(int(keep.sum()), np.int8), (f[keep], g[keep])), shape=(m, m)),
                                    directed=False)
     comp = np.where(prim, -1, comp)
-    island = _islands(ctx, label, fits, prim, comp, area)
+    tangent = _tangent_pairs(ctx, label, fits, prim)
+    island = _islands(ctx, label, fits, prim, comp, area, tangent)
+    reg_area = np.bincount(label[label >= 0], weights=area[label >= 0], minlength=k)
     # components joined through islands: a graph on components (nodes 0..m-1) and islands (nodes m + region)
     group = np.arange(m + k)
     if island:
@@ -627,8 +636,34 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
                   "border angles %s, %.3f of the tile borders sharp: %s", len(faces), a, tiles, chi, loops, holes,
                   {r: round(v, 1) for r, v in angles.items()}, crease, ok)
         if ok:
-            out.append(faces)
+            out.append(_rounded_edges(ctx, label, fits, faces, angles, tangent, a, reg_area))
     return out
+
+
+def _rounded_edges(ctx: _Ctx, label, fits, faces, angles, tangent, group_area, reg_area):
+    """The free-form face's triangles with the slivers the noise rounded along its sharp edges, and what of
+    them goes to the face on the other side: ``(faces, {region: triangles})``.
+
+    Under noise a sharp edge looks like a small fillet, and a curved region may cover it (lofted/noisy20: a
+    19-triangle cylinder of radius 2 along the top edge). A fillet is tangent to both faces it joins; a small
+    curved region tangent to one primary only and meeting the free-form face at a sharp angle is that rounded
+    edge: its triangles on the tangent primary's surface (within tolerance) go to that primary, the rest to
+    the free-form face.
+    """
+    give = {}
+    extra = []
+    for r in angles:
+        if r < 0 or fits[r].type == "plane" or reg_area[r] >= ISLAND_SHARE * group_area:
+            continue
+        partners = [b if a == r else a for a, b in tangent if r in (a, b)]
+        if len(partners) != 1:
+            continue
+        q = partners[0]
+        tris = np.flatnonzero(label == r)
+        on_q = _accept(ctx, fits[q], tris)
+        give[q] = np.r_[give.get(q, np.zeros(0, np.int64)), tris[on_q]]
+        extra.append(tris[~on_q])
+    return np.sort(np.concatenate([faces, *extra])), give
 
 
 def fitted_regions(
@@ -741,9 +776,11 @@ def fitted_regions(
     # 5. free-form faces the fitters tiled with curved pieces: one free region each (the B-spline fits it)
     free = _free_forms(ctx, label, fits, blend, area, min_area) if fits else []
     if free:
-        for faces in free:
+        for faces, give in free:
             label[faces] = len(fits)
             fits.append(SurfaceFit("free", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(faces)))
+            for q, tris in give.items():
+                label[tris] = q
         blend = np.r_[blend, np.zeros(len(free), bool)]
         alive = np.unique(label[label >= 0])
         lut = np.full(len(fits) + 1, -1, np.int64)
