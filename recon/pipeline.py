@@ -18,7 +18,7 @@ import scipy.sparse as sp
 
 from .decompose import Decomposition, decompose
 from .errors import BrepError, InputError, ReconError
-from .fit import SurfaceFit, default_tolerance, fit_surface
+from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
 from .mesh import Mesh, clean_mesh, load_mesh
 
 __all__ = ["Conversion", "convert", "face_labels", "STAGES"]
@@ -30,12 +30,18 @@ STAGES = ("load", "decompose", "fit", "brep", "deviation")
 
 #: Surface types a merge may keep (a B-spline fits anything: merging on it would erase edges).
 _ANALYTIC = ("plane", "sphere", "cylinder", "cone", "torus")
+_CURVED = _ANALYTIC[1:]
 
 #: A feature part whose area lies this much within tolerance of its neighbouring patches' surfaces is a sharp edge.
 EXPLAINED_SHARE = 0.9
 
 #: A part needs this many distinct vertices to carry a surface of its own (``fit_surface`` needs 16).
 MIN_PART_VERTICES = 16
+
+#: A smaller piece may still be a planar face of its own (a chamfer's corner triangle): it needs this many
+#: vertices, the fewest a triangle subdivided once has (3 corners, 3 mid-edge points) — three points are
+#: any plane, the other three are the evidence.
+MIN_CORNER_VERTICES = 6
 
 Progress = Callable[[str, float], None]
 
@@ -139,10 +145,11 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
         centroids = mesh.face_centroids
         areas = mesh.face_areas
         dissolved = []
+        nverts = _vertex_counts(mesh.faces, labels)
         for pid in features:
             cands = [c for c in candidates[pid] if patch_fits[c].params]
-            if not cands:
-                continue
+            if not cands or (nverts[pid] < MIN_PART_VERTICES and not parts[pid].sharp):
+                continue  # a piece too small to judge by its centroids is judged whole, by its vertices (`_tidy`)
             tris = np.flatnonzero(labels == pid)
             d = np.stack([np.abs(patch_fits[c].distance(centroids[tris])) for c in cands])
             nearest = d.min(axis=0)
@@ -152,19 +159,27 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
                 dissolved.append(pid)
         log.info("%d of %d feature parts are sharp: their triangles went to the patches", len(dissolved), len(features))
         labels = _absorb(labels, pairs, np.isin(labels, dissolved))
-    return _tidy(mesh, labels)
+    return _tidy(mesh, labels, tolerance=tolerance)
 
 
-def _tidy(mesh: Mesh, labels: np.ndarray) -> np.ndarray:
+def _tidy(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> np.ndarray:
     """One label per connected piece, pieces too small for a surface absorbed by the part they touch most,
-    labels renumbered 0..k−1 in order of first appearance (deterministic)."""
+    labels renumbered 0..k−1 in order of first appearance (deterministic).
+
+    With ``tolerance``, small pieces that are planar faces of their own are kept (:func:`_small_faces`).
+    """
     pairs = _faces_adjacency(mesh)
+    kept = np.zeros(len(labels), dtype=bool)  # small faces `_small_faces` kept stay kept
     # A label that fell apart into several connected pieces is one face per piece; pieces too small to carry a
     # surface of their own join the part they touch most.
     for _ in range(4):
         labels = _split_disconnected(labels, pairs)
         nverts = _vertex_counts(mesh.faces, labels)
-        small = nverts[labels] < MIN_PART_VERTICES
+        small = (nverts[labels] < MIN_PART_VERTICES) & ~kept
+        if tolerance is not None and small.any() and not small.all():
+            new, small = _small_faces(mesh, labels, small, pairs, tolerance)
+            kept |= new > labels.max()
+            labels = new
         if not small.any() or small.all():
             break
         labels = _absorb(labels, pairs, small)
@@ -209,7 +224,7 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     return labels, fits
 
 
-def _cut_unbounded(mesh: Mesh, labels: np.ndarray) -> np.ndarray:
+def _cut_unbounded(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> np.ndarray:
     """Labels with every closed body that one label covers cut in two (``labels`` itself if there is none).
 
     A face needs a boundary, and a closed body covered by one smooth part (a sphere, an ellipsoid, a coarse
@@ -239,7 +254,60 @@ def _cut_unbounded(mesh: Mesh, labels: np.ndarray) -> np.ndarray:
             out = labels.copy()
         out[tris[side]] = out.max() + 1
         log.info("a closed body is one smooth part: cut in two across its longest axis to give its faces an edge")
-    return out if out is labels else _tidy(mesh, out)
+    return out if out is labels else _tidy(mesh, out, tolerance=tolerance)
+
+
+def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.ndarray, tolerance: float):
+    """Keep the clusters of small pieces that are planar faces no neighbour's surface explains.
+
+    A chamfered box's corner is a small triangle between three chamfers, often split by the decomposition
+    into a junction and terminals of a triangle or two each. Joined to a chamfer it bends that chamfer off
+    its plane, and the chamfer becomes a B-spline. So a connected cluster of small pieces becomes one face
+    of its own when a plane holds its vertices within ``tolerance`` (at least :data:`MIN_CORNER_VERTICES`
+    of them) while the surface fitted to each neighbouring part leaves some vertex farther than
+    ``tolerance`` away — absorbing it anywhere would bend that face — and no neighbour is a curved analytic
+    surface (next to one, such a piece is the remnant of a blend: on pocket noisy20 two of them made the
+    solid invalid). A planar cluster that does lie on a
+    neighbour's surface joins that neighbour (not the one it touches most). Returns the labels and the
+    still-small mask (clusters placed here are no longer small).
+    """
+    V, F = mesh.vertices, mesh.faces
+    a, b = pairs[:, 0], pairs[:, 1]
+    both = small[a] & small[b]
+    m = len(labels)
+    graph = sp.coo_matrix((np.ones(int(both.sum())), (a[both], b[both])), shape=(m, m))
+    _, comp = sp.csgraph.connected_components(graph, directed=False)
+    comp = np.where(small, comp, -1)
+    neighbour_fits: dict[int, SurfaceFit] = {}
+    labels, small = labels.copy(), small.copy()
+    for c in np.unique(comp[comp >= 0]):
+        tris = np.flatnonzero(comp == c)
+        ids = np.unique(F[tris])
+        if len(ids) < MIN_CORNER_VERTICES:
+            continue
+        plane = fit_plane(V[ids])
+        if np.abs(plane.distance(V[ids])).max() > tolerance:
+            continue
+        touch = np.isin(a, tris) ^ np.isin(b, tris)
+        others = np.unique(labels[np.where(np.isin(a[touch], tris), b[touch], a[touch])])
+        others = [int(o) for o in others if not small[np.flatnonzero(labels == o)[0]]]
+        if not others:
+            continue
+        for o in others:
+            if o not in neighbour_fits:
+                neighbour_fits[o] = _fit_parts(mesh, labels, tolerance=tolerance, only=[o])[o]
+        off = [np.abs(neighbour_fits[o].distance(V[ids])).max() if neighbour_fits[o].params else np.inf
+               for o in others]
+        if min(off) <= tolerance:  # it lies on a neighbour's surface: it joins that one, not the one it touches most
+            labels[tris] = others[int(np.argmin(off))]
+            small[tris] = False
+            continue
+        if any(neighbour_fits[o].type in _CURVED for o in others):
+            continue  # next to a curved face a small flat piece is what is left of a blend, not a face
+        labels[tris] = labels.max() + 1
+        small[tris] = False
+        log.info("a planar piece of %d triangles between %d faces kept as a face of its own", len(tris), len(others))
+    return labels, small
 
 
 def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -276,6 +344,11 @@ def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None) -
     for p in range(labels.max() + 1) if only is None else only:
         tris = F[order[bounds[p] : bounds[p + 1]]]
         ids, local = np.unique(tris, return_inverse=True)
+        if MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:  # a corner kept by `_small_faces`
+            plane = fit_plane(V[ids], tolerance=tolerance)
+            if plane.ok:
+                fits[p] = plane
+                continue
         if len(ids) < MIN_PART_VERTICES:
             fits[p] = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(ids), False,
                                  f"{len(ids)} vertices: too few for a surface")
@@ -355,9 +428,9 @@ def convert(
     merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
     if merged.max() < labels.max():
         log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
-        labels = _tidy(mesh, merged)
+        labels = _tidy(mesh, merged, tolerance=tolerance)
         fits = _fit_parts(mesh, labels, tolerance=tolerance)
-    cut = _cut_unbounded(mesh, labels)
+    cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
     if cut is not labels:
         labels = cut
         fits = _fit_parts(mesh, labels, tolerance=tolerance)

@@ -127,6 +127,22 @@ def test_lofted_fixture_is_two_planes_and_one_closed_bspline(moved):
     assert result.report["deviation"]["mesh_to_shape"]["p95_pct"] <= 0.05
 
 
+def test_chamfered_box_keeps_its_corner_triangles():
+    """box_chamfer: 6 faces, 12 chamfers and 8 corner triangles of 4 mesh triangles each, all planes. A corner
+    is too small for a surface fit of its own; joined to a chamfer it bent the chamfer into a B-spline (18
+    faces, 11 B-splines). The mesh lies exactly on the true planes, so the solid's volume is the true one up
+    to the B-rep's vertex tolerance (1e-7 of the part's size: 1e-6 relative is generous)."""
+    from recon import convert
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture("box_chamfer", "clean")
+    result = convert((fx.vertices, fx.faces), deviation=False)
+    assert result.brep.validity.ok, result.report["validity"]
+    assert result.report["n_faces"] == len(fx.true_faces) == 26
+    assert result.report["faces_by_type"] == {"plane": 26}
+    assert result.brep.validity.volume == pytest.approx(fx.volume, rel=1e-6)
+
+
 @pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes is absent")
 @pytest.mark.parametrize("name", ["block.off", "joint.off", "abc_00000050.stl"])
 def test_real_mesh_converts_to_valid_solids(name):
