@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .decompose import Decomposition, decompose
+from .decompose._regions import split_by_fitting
 from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
 from .mesh import Mesh, clean_mesh, load_mesh
@@ -37,6 +38,11 @@ EXPLAINED_SHARE = 0.9
 
 #: A part needs this many distinct vertices to carry a surface of its own (``fit_surface`` needs 16).
 MIN_PART_VERTICES = 16
+
+#: A part no surface fits is split into the analytic surfaces found inside it when they cover this share of
+#: its area, each at least :data:`SPLIT_MIN_SHARE` of it.
+SPLIT_COVER = 0.9
+SPLIT_MIN_SHARE = 0.05
 
 #: A smaller piece may still be a planar face of its own (a chamfer's corner triangle): it needs this many
 #: vertices, the fewest a triangle subdivided once has (3 corners, 3 mid-edge points) — three points are
@@ -222,6 +228,51 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
         if not merged:
             break
     return labels, fits
+
+
+def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
+    """Labels with every part no surface fits split into the analytic surfaces inside it, where they cover it.
+
+    The decomposition can leave several faces in one part: a ring of fillets meeting at a pocket's sharp
+    corners is one linear part (the skeleton has no junction there), and no one surface fits it. Regions
+    grown from seeds inside such a part (:func:`recon.decompose._regions.split_by_fitting`) that together
+    cover :data:`SPLIT_COVER` of its area become faces of their own; the few triangles between them join
+    the region they touch most. The split is kept only if every piece then fits its surface within
+    tolerance. Returns ``labels`` itself when nothing was split.
+    """
+    V, F = mesh.vertices, mesh.faces
+    pairs = _faces_adjacency(mesh)
+    area = mesh.face_areas
+    vn = None
+    out = labels
+    for p, fit in sorted(fits.items()):
+        if fit.ok:
+            continue
+        tris = np.flatnonzero(labels == p)
+        if len(np.unique(F[tris])) < 2 * MIN_PART_VERTICES:
+            continue
+        if vn is None:
+            vn = _vertex_normals(V, F, mesh.face_normals, area)
+        total = area[tris].sum()
+        found = split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=SPLIT_MIN_SHARE * total)
+        if len(found) < 2 or sum(area[r].sum() for r, _ in found) < SPLIT_COVER * total:
+            continue
+        trial = out.copy()
+        base = int(trial.max()) + 1
+        trial[tris] = -1
+        for i, (r, _) in enumerate(found):
+            trial[r] = base + i
+        inside = np.isin(pairs[:, 0], tris) & np.isin(pairs[:, 1], tris)
+        trial = _absorb(trial, pairs[inside], trial == -1)
+        if (trial == -1).any():
+            continue
+        new = list(range(base, base + len(found)))
+        pieces = _fit_parts(mesh, trial, tolerance=tolerance, only=new)
+        if not all(pieces[q].ok and pieces[q].type in _ANALYTIC for q in new):
+            continue
+        log.info("part %d fits no surface: split into %d (%s)", p, len(new), ", ".join(pieces[q].type for q in new))
+        out = trial
+    return out
 
 
 def _cut_unbounded(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> np.ndarray:
@@ -429,6 +480,10 @@ def convert(
     if merged.max() < labels.max():
         log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
         labels = _tidy(mesh, merged, tolerance=tolerance)
+        fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    split = split_unfitted(mesh, labels, fits, tolerance=tolerance)
+    if split is not labels:
+        labels = _tidy(mesh, split, tolerance=tolerance)
         fits = _fit_parts(mesh, labels, tolerance=tolerance)
     cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
     if cut is not labels:

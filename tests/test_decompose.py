@@ -205,3 +205,30 @@ def test_closed_form_fits_recover_exact_surfaces(kind):
     # a plane is not mistaken for a curved surface: the closed forms refuse it as degenerate
     flat = np.c_[u, v, np.zeros_like(u)]
     assert qf.quick_fit(kind, flat, np.tile([0.0, 0.0, 1.0], (200, 1)), 1e-3, refine=False) is None
+
+
+def test_split_by_fitting_finds_the_four_fillets_of_a_pocket_ring():
+    """pocket's floor fillets (radius 3) meet at the pocket's sharp corners: the decomposition sees one ring,
+    one linear part, that no surface fits. Grown from seeds inside the ring, the regions are its four true
+    cylinders, triangle for triangle, with the true radius and axes along x and y (the mesh vertices lie on
+    the true surfaces, so the fit is exact to round-off: 1e-6 of a 3 mm radius is generous)."""
+    from recon.decompose._regions import split_by_fitting
+    from recon.fixtures import load_fixture
+    from recon.pipeline import _vertex_normals
+
+    fx = load_fixture("pocket", "clean")
+    V, F = fx.vertices, fx.faces
+    cylinders = [f.index for f in fx.true_faces if f.type == "cylinder"]
+    ring = np.flatnonzero(np.isin(fx.labels, cylinders))
+    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    area = 0.5 * np.linalg.norm(cr, axis=1)
+    vn = _vertex_normals(V, F, cr / (2 * area[:, None]), area)
+    found = split_by_fitting(V, F, ring, vnormal=vn, tolerance=TOL_FLOOR * float(np.linalg.norm(np.ptp(V, axis=0))), min_area=0.05 * area[ring].sum())
+    assert len(found) == 4
+    got = sorted(sorted(np.unique(fx.labels[r]).tolist()) for r, _ in found)
+    assert got == sorted([c] for c in cylinders)
+    for r, fit in found:
+        assert len(r) == int((fx.labels == fx.labels[r[0]]).sum())
+        assert fit.type == "cylinder" and fit.params["radius"] == pytest.approx(3.0, rel=1e-6)
+        axis = np.abs(np.asarray(fit.params["axis_dir"]))
+        assert axis.max() == pytest.approx(1.0, abs=1e-6) and np.argmax(axis) in (0, 1)

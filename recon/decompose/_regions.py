@@ -39,7 +39,7 @@ from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
 from ._quickfit import quick_fit, surface_normals
 
-__all__ = ["Regions", "fitted_regions"]
+__all__ = ["Regions", "fitted_regions", "split_by_fitting"]
 
 log = logging.getLogger(__name__)
 
@@ -793,3 +793,63 @@ def fitted_regions(
         len(fits), ", ".join(sorted({f.type for f in fits})), int(blend.sum()), int((label < 0).sum()), m,
     )
     return Regions(label=label, fits=tuple(fits), blend=blend, tolerance=float(tolerance), angle=float(angle))
+
+
+#: Seeds of :func:`split_by_fitting` may grow across creases up to this angle (degrees): a facet of a
+#: 12-sided cylinder turns by 30°, and the chords of a small fillet turn by that much.
+SPLIT_ANGLE_DEG = 30.0
+
+
+def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float) -> list:
+    """The analytic surfaces that cover ``faces``, as regions grown from seeds inside them.
+
+    For a part no one surface fits: a ring of four fillets meeting at a pocket's sharp corners is one linear
+    part, and four cylinders. Seeds are taken deepest inside the part first (away from its border, where it
+    meets its neighbours), each grown ring by ring while its triangles stay within ``tolerance`` of its
+    surface and their normals within :data:`SPLIT_ANGLE_DEG` of its normal. Fillets are often a few
+    triangles wide, so unlike the decomposition's seeds these may cross the facets' creases.
+
+    Parameters
+    ----------
+    V : (n, 3) float
+    F : (m, 3) int
+    faces : (k,) int
+        The part's triangles.
+    vnormal : (n, 3) float
+        Unit vertex normals.
+    tolerance, min_area : float
+        Distance tolerance; least area a region must reach to count.
+
+    Returns
+    -------
+    list of (faces (j,) int, SurfaceFit)
+        Regions in the order they were found; triangles of ``faces`` in none of them are not covered.
+    """
+    from ._topology import topology
+
+    faces = np.asarray(faces, dtype=np.int64)
+    ids, local = np.unique(F[faces], return_inverse=True)
+    v, f = V[ids], local.reshape(-1, 3)
+    topo = topology(f, len(v))
+    adj = np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(-1, 3)
+    h = np.flatnonzero(topo.twin > np.arange(len(topo.twin)))
+    pairs = np.stack([h // 3, topo.twin[h] // 3, topo.half_edge[h]], axis=1)
+    cr = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+    area = 0.5 * np.linalg.norm(cr, axis=1)
+    fn = cr / np.maximum(2.0 * area[:, None], 1e-300)
+    diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    ctx = _Ctx(v, f, adj, pairs, topo.edges, fn, vnormal[ids], tolerance, np.deg2rad(SPLIT_ANGLE_DEG), diag)
+    ctx.fa = area
+    ctx.crease = -2.0
+    # depth: rings from the part's border inwards; the deepest triangles seed first
+    depth = np.full(len(f), -1, np.int64)
+    ring = np.flatnonzero((adj < 0).any(axis=1))
+    d = 0
+    while len(ring):
+        depth[ring] = d
+        nb = adj[ring].ravel()
+        nb = np.unique(nb[nb >= 0])
+        ring = nb[depth[nb] < 0]
+        d += 1
+    found = _seed_regions(ctx, np.ones(len(f), bool), -depth.astype(float), min_area, area)
+    return [(faces[r], fit) for r, fit in found]
