@@ -6,10 +6,12 @@ judges a reconstruction by (faces by type, deviation from the mesh, validity, ti
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import time
 from collections import Counter
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -50,6 +52,11 @@ SPLIT_MIN_SHARE = 0.05
 MIN_CORNER_VERTICES = 6
 
 Progress = Callable[[str, float], None]
+
+#: Fits by (tolerance, triangle set) for the conversion running in this context. The fit stage fits the same
+#: part several times over (to dissolve sharp features, after merging, for a small piece's neighbours), and
+#: a fit depends on nothing but its triangles: each is made once.
+_FIT_MEMO: ContextVar[dict | None] = ContextVar("recon_fit_memo", default=None)
 
 
 @dataclass(frozen=True)
@@ -219,7 +226,8 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
             if not (fp and fq and fp.type == fq.type and fp.type in _ANALYTIC):
                 continue
             union = np.where(labels == q, p, labels)
-            fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p])[p]
+            # only the same type merges: the types before it decide as in a full fit, the rest cannot win
+            fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p], upto=fp.type)[p]
             if fit and fit.type == fp.type:
                 labels, fits[p] = union, fit
                 del fits[q]
@@ -385,30 +393,49 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.nd
     return vn / np.where(n > 0, n, 1.0)[:, None]
 
 
-def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None) -> dict[int, SurfaceFit]:
-    """One surface per label (or per label in ``only``), fitted to the label's vertices with their normals."""
+def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None, upto: str | None = None
+               ) -> dict[int, SurfaceFit]:
+    """One surface per label (or per label in ``only``), fitted to the label's vertices with their normals.
+
+    ``upto``: try only the analytic types up to this one (in :func:`recon.fit.fit_surface`'s order) and no
+    B-spline — the same answer whenever the full fit would give one of those types, at a fraction of the cost.
+    """
     V, F = mesh.vertices, mesh.faces
     vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
     fits = {}
+    memo = _FIT_MEMO.get()
     for p in range(labels.max() + 1) if only is None else only:
-        tris = F[order[bounds[p] : bounds[p + 1]]]
-        ids, local = np.unique(tris, return_inverse=True)
-        if MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:  # a corner kept by `_small_faces`
-            plane = fit_plane(V[ids], tolerance=tolerance)
-            if plane.ok:
-                fits[p] = plane
+        members = order[bounds[p] : bounds[p + 1]]
+        if memo is not None:
+            key = (float(tolerance), upto, hashlib.sha1(members.tobytes()).digest())
+            if key in memo:
+                fits[p] = memo[key]
                 continue
-        if len(ids) < MIN_PART_VERTICES:
-            fits[p] = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(ids), False,
-                                 f"{len(ids)} vertices: too few for a surface")
-            continue
-        fit = fit_surface(V[ids], vn[ids], tolerance=tolerance, faces=local.reshape(-1, 3))
-        if not fit.params:  # nothing at all could be fitted: the B-spline must carry it
-            log.warning("part %d: no surface fits (%s)", p, fit.reason)
-        fits[p] = fit
+        fits[p] = _fit_triangles(V, F[members], vn, tolerance, p, upto)
+        if memo is not None:
+            memo[key] = fits[p]
     return fits
+
+
+def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = None) -> SurfaceFit:
+    """The surface of one part: its triangles ``tris`` (k, 3) (vertex ids into ``V``); ``p`` names it in the log."""
+    ids, local = np.unique(tris, return_inverse=True)
+    if MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:  # a corner kept by `_small_faces`
+        plane = fit_plane(V[ids], tolerance=tolerance)
+        if plane.ok:
+            return plane
+    if len(ids) < MIN_PART_VERTICES:
+        return SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(ids), False,
+                          f"{len(ids)} vertices: too few for a surface")
+    if upto is not None:
+        return fit_surface(V[ids], vn[ids], tolerance=tolerance, types=_ANALYTIC[: _ANALYTIC.index(upto) + 1],
+                           allow_bspline=False)
+    fit = fit_surface(V[ids], vn[ids], tolerance=tolerance, faces=local.reshape(-1, 3))
+    if not fit.params:  # nothing at all could be fitted: the B-spline must carry it
+        log.warning("part %d: no surface fits (%s)", p, fit.reason)
+    return fit
 
 
 def convert(
@@ -474,21 +501,7 @@ def convert(
 
     t = time.perf_counter()
     step("fit", 0.0)
-    labels = face_labels(mesh, dec, tolerance=tolerance)
-    fits = _fit_parts(mesh, labels, tolerance=tolerance)
-    merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
-    if merged.max() < labels.max():
-        log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
-        labels = _tidy(mesh, merged, tolerance=tolerance)
-        fits = _fit_parts(mesh, labels, tolerance=tolerance)
-    split = split_unfitted(mesh, labels, fits, tolerance=tolerance)
-    if split is not labels:
-        labels = _tidy(mesh, split, tolerance=tolerance)
-        fits = _fit_parts(mesh, labels, tolerance=tolerance)
-    cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
-    if cut is not labels:
-        labels = cut
-        fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    labels, fits = _faces_and_fits(mesh, dec, tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)
 
@@ -523,6 +536,30 @@ def convert(
     if dev_error:
         report["warnings"].append(f"deviation not measured: {dev_error}")
     return Conversion(brep.shape, report, mesh, dec, labels, fits, brep)
+
+
+def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[np.ndarray, dict]:
+    """The fit stage: the face label of every triangle and the surface of every face."""
+    token = _FIT_MEMO.set({})
+    try:
+        labels = face_labels(mesh, dec, tolerance=tolerance)
+        fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+        if merged.max() < labels.max():
+            log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
+            labels = _tidy(mesh, merged, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        split = split_unfitted(mesh, labels, fits, tolerance=tolerance)
+        if split is not labels:
+            labels = _tidy(mesh, split, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
+        if cut is not labels:
+            labels = cut
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        return labels, fits
+    finally:
+        _FIT_MEMO.reset(token)
 
 
 def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
