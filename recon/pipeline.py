@@ -401,11 +401,15 @@ def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None, u
     B-spline — the same answer whenever the full fit would give one of those types, at a fraction of the cost.
     """
     V, F = mesh.vertices, mesh.faces
-    vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
+    memo = _FIT_MEMO.get()
+    vn = memo.get("vertex normals") if memo is not None else None
+    if vn is None:
+        vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
+        if memo is not None:
+            memo["vertex normals"] = vn
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
     fits = {}
-    memo = _FIT_MEMO.get()
     for p in range(labels.max() + 1) if only is None else only:
         members = order[bounds[p] : bounds[p + 1]]
         if memo is not None:
