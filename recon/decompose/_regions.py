@@ -41,6 +41,8 @@ from ._quickfit import quick_fit, surface_normals
 
 __all__ = ["Regions", "fitted_regions", "split_by_fitting"]
 
+ANALYTIC_FITTERS_ORDER = tuple(ANALYTIC_FITTERS)
+
 log = logging.getLogger(__name__)
 
 #: Fewest distinct vertices a seed must hold before it is fitted.
@@ -266,7 +268,22 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
         size += len(nb)  # nb is unique and was outside the region
         if size >= REFIT_GROWTH * fitted_size or not len(frontier):
             if size == fitted_size:
-                break
+                # stalled: under noise a small region of a gently curved face fits a plane (or a sphere) within
+                # tolerance, and stops where the curvature shows; a later type may carry it on
+                region = np.sort(np.concatenate(members)) if len(members) > 1 else members[0]
+                members = [region]
+                later = ANALYTIC_FITTERS_ORDER[ANALYTIC_FITTERS_ORDER.index(fit.type) + 1 :]
+                new = _fit_input(ctx, _FitInput(ctx, region), later, polish=True) if later else None
+                if new is None:
+                    break
+                nb = ctx.adj[region].ravel()
+                nb = nb[nb >= 0]
+                nb = np.unique(nb[allowed[nb] & ~inreg[nb]])
+                if not len(nb) or not _accept(ctx, new, nb).any():
+                    break
+                fit = new
+                frontier = region
+                continue
             region = np.sort(np.concatenate(members))  # == np.flatnonzero(inreg)
             members = [region]
             fi = _FitInput(ctx, region)
