@@ -232,3 +232,28 @@ def test_split_by_fitting_finds_the_four_fillets_of_a_pocket_ring():
         assert fit.type == "cylinder" and fit.params["radius"] == pytest.approx(3.0, rel=1e-6)
         axis = np.abs(np.asarray(fit.params["axis_dir"]))
         assert axis.max() == pytest.approx(1.0, abs=1e-6) and np.argmax(axis) in (0, 1)
+
+
+@pytest.mark.parametrize("span, expected", [(2 * np.pi, 2 * np.pi), (np.pi / 2, np.pi / 2)])
+def test_turn_of_a_cylinder_region(span, expected):
+    """A fillet's cylinder covers a quarter turn, a hole or a boss a full one (then it is no blend): points at
+    60 angles over ``span`` on an r = 5 cylinder about a tilted axis cover ``span`` less one step
+    (a full turn has no gap but the step itself)."""
+    from types import SimpleNamespace
+
+    from recon.decompose._regions import _turn
+    from recon.fit import SurfaceFit
+
+    d = np.array([1.0, 2.0, 2.0]) / 3.0
+    u = np.cross(d, [1.0, 0.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(d, u)
+    n = 60
+    full = span >= 2 * np.pi - 1e-12
+    t = np.linspace(0.0, span, n, endpoint=not full)
+    h = np.linspace(-3.0, 3.0, n)
+    pts = np.array([1.0, 1.0, 1.0]) + 5.0 * (np.outer(np.cos(t), u) + np.outer(np.sin(t), w)) + np.outer(h, d)
+    fit = SurfaceFit("cylinder", {"axis_point": [1.0, 1.0, 1.0], "axis_dir": d.tolist(), "radius": 5.0}, {}, n)
+    step = span / n if full else 0.0
+    got = _turn(SimpleNamespace(centroid=pts), fit, np.arange(n))
+    assert got == pytest.approx(expected - step, abs=1e-9)

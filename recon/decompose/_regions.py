@@ -474,7 +474,23 @@ def _blends(ctx: _Ctx, label: np.ndarray, fits: list) -> np.ndarray:
         if np.median(ang) < TANGENT_DEG:
             tangent[a, b] = tangent[b, a] = True
     curved = np.array([fit.type not in ("plane", "free") for fit in fits], bool)
-    return curved & (tangent.sum(axis=1) >= 2)
+    blend = curved & (tangent.sum(axis=1) >= 2)
+    for r in np.flatnonzero(blend):
+        if fits[r].type == "cylinder" and _turn(ctx, fits[r], np.flatnonzero(label == r)) > np.pi:
+            blend[r] = False  # a cylinder round more than half a turn is no fillet (those are < 180°)
+    return blend
+
+
+def _turn(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray) -> float:
+    """The angle (radians) a region covers about its cylinder's axis: a full turn less its widest gap."""
+    d = np.asarray(fit.params["axis_dir"], float)
+    q = ctx.centroid[faces] - np.asarray(fit.params["axis_point"], float)
+    u = np.cross(d, [1.0, 0.0, 0.0] if abs(d[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    w = np.cross(d, u)
+    ang = np.sort(np.arctan2(q @ w, q @ u))
+    gaps = np.diff(np.r_[ang, ang[0] + 2 * np.pi])
+    return float(2 * np.pi - gaps.max()) if len(ang) > 1 else 0.0
 
 
 def _angles(n: np.ndarray, m: np.ndarray) -> np.ndarray:
