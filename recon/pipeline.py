@@ -294,9 +294,7 @@ def _cut_unbounded(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = 
     pairs = _faces_adjacency(mesh)
     body = _split_disconnected(np.zeros(len(labels), dtype=np.int64), pairs)
     out = labels
-    edges = np.sort(mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, edge_count = np.unique(edges, axis=0, return_counts=True)
-    if np.any(edge_count == 1):  # an open mesh: its boundary bounds its faces
+    if np.any(mesh.edge_face_count == 1):  # an open mesh: its boundary bounds its faces
         return labels
     for b in np.unique(body):
         tris = np.flatnonzero(body == b)
@@ -371,8 +369,13 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
 
 def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
     k = int(labels.max()) + 1
-    pairs = np.unique(np.column_stack([np.repeat(labels, 3), faces.ravel()]), axis=0)
-    return np.bincount(pairs[:, 0], minlength=k)
+    n = int(faces.max()) + 1
+    # distinct (label, vertex) pairs as the stored entries of a sparse label × vertex matrix (np.unique on
+    # rows sorts them lexicographically: 15 s at 1M triangles)
+    rows = np.repeat(labels, 3)
+    m = sp.csr_matrix((np.ones(len(rows), np.int32), (rows, faces.ravel())), shape=(k, n))
+    m.sum_duplicates()
+    return np.diff(m.indptr)
 
 
 def _split_disconnected(labels: np.ndarray, pairs: np.ndarray) -> np.ndarray:
