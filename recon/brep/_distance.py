@@ -665,10 +665,48 @@ def _xy(p2) -> tuple[float, float]:
     return (p2.X(), p2.Y())
 
 
+#: Segments whose exact distance :func:`_polyline_distance` computes per point before it proves the rest farther.
+NEAR_SEGMENTS = 8
+
+
 def _polyline_distance(p, verts, *, chunk_elems=4_000_000):
-    """Distance from points to a polyline: (dist (n,), nearest point (n, 3), nearest vertex (n,))."""
+    """Distance from points to a polyline: (dist (n,), nearest point (n, 3), nearest vertex (n,)).
+
+    Exact. Each point is measured against the :data:`NEAR_SEGMENTS` segments whose midpoints are nearest
+    (a k-d tree); a segment of half-length h whose midpoint lies farther than d + h cannot be nearer than
+    d, so where the farthest of those midpoints is beyond the best distance plus the longest half-length,
+    the answer stands. The other points are measured against every segment. (All against all took 15 s of
+    the deviation of a 1M-triangle mesh.)
+    """
     a, ab = verts[:-1], np.diff(verts, axis=0)
     l2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
+    if len(a) <= 2 * NEAR_SEGMENTS:
+        return _polyline_all(p, a, ab, l2, chunk_elems)
+    tree = cKDTree(a + 0.5 * ab)
+    half = 0.5 * math.sqrt(float(l2.max()))
+    n = len(p)
+    dist, near, vert = np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.int64)
+    todo = np.arange(n)
+    for k in (NEAR_SEGMENTS, 8 * NEAR_SEGMENTS):  # the few points left by the first round get more segments
+        if k >= len(a) or not len(todo):
+            break
+        q = p[todo]
+        dm, idx = tree.query(q, k=k)
+        t = np.clip(np.einsum("qkj,qkj->qk", q[:, None, :] - a[idx], ab[idx]) / l2[idx], 0.0, 1.0)
+        c = a[idx] + t[..., None] * ab[idx]
+        d = np.linalg.norm(q[:, None, :] - c, axis=2)
+        j = np.argmin(d, axis=1)
+        rows = np.arange(len(q))
+        dist[todo], near[todo] = d[rows, j], c[rows, j]
+        vert[todo] = idx[rows, j] + (t[rows, j] > 0.5)
+        todo = todo[dm[:, -1] <= d[rows, j] + half]
+    if len(todo):
+        dist[todo], near[todo], vert[todo] = _polyline_all(p[todo], a, ab, l2, chunk_elems)
+    return dist, near, vert
+
+
+def _polyline_all(p, a, ab, l2, chunk_elems):
+    """:func:`_polyline_distance` against every segment ``a + t ab``, in chunks of ``chunk_elems`` pairs."""
     n = len(p)
     dist, near, vert = np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.int64)
     step = max(1, chunk_elems // max(1, len(a)))
