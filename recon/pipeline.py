@@ -46,6 +46,11 @@ MIN_PART_VERTICES = 16
 SPLIT_COVER = 0.9
 SPLIT_MIN_SHARE = 0.05
 
+#: A B-spline face is cut back to one analytic surface grown inside it that covers this share of its area.
+TRIM_COVER = 0.85
+#: Seeds tried for it, deepest inside the face first (a region that covers 85 % of a face holds its middle).
+TRIM_SEEDS = 3
+
 #: A smaller piece may still be a planar face of its own (a chamfer's corner triangle): it needs this many
 #: vertices, the fewest a triangle subdivided once has (3 corners, 3 mid-edge points) — three points are
 #: any plane, the other three are the evidence.
@@ -279,6 +284,59 @@ def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: flo
         if not all(pieces[q].ok and pieces[q].type in _ANALYTIC for q in new):
             continue
         log.info("part %d fits no surface: split into %d (%s)", p, len(new), ", ".join(pieces[q].type for q in new))
+        out = trial
+    return out
+
+
+def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
+    """Labels with every B-spline (or unfitted) face that is mostly one analytic surface cut back to it.
+
+    Under noise a face can take in slivers of its neighbours (a chamfer's edge on a large plane): one plane
+    no longer fits it, a B-spline does, and the plane becomes a free-form face. When one analytic region
+    grown inside the face (:func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of
+    its area, the rest goes to the neighbouring face whose surface passes nearest; the trim is kept only if
+    the face then fits an analytic surface and every face that received triangles still fits within tolerance.
+    Returns ``labels`` itself when nothing was trimmed.
+    """
+    V, F = mesh.vertices, mesh.faces
+    pairs = _faces_adjacency(mesh)
+    area = mesh.face_areas
+    vn = None
+    out = labels
+    for p, fit in sorted(fits.items()):
+        if fit.ok and fit.type != "bspline":
+            continue
+        tris = np.flatnonzero(out == p)
+        if len(np.unique(F[tris])) < 2 * MIN_PART_VERTICES:
+            continue
+        if vn is None:
+            vn = _vertex_normals(V, F, mesh.face_normals, area)
+        total = area[tris].sum()
+        found = split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=TRIM_COVER * total,
+                                 max_seeds=TRIM_SEEDS)
+        if not found:
+            continue
+        region = found[0][0]
+        rest = np.setdiff1d(tris, region)
+        # the rest goes to the neighbouring face whose surface passes nearest to it
+        in_rest = np.isin(pairs, rest)
+        across = in_rest[:, 0] ^ in_rest[:, 1]
+        outer = np.where(in_rest[across, 0], pairs[across, 1], pairs[across, 0])
+        cands = [int(q) for q in np.unique(out[outer]) if q != p and fits.get(int(q)) and fits[int(q)].params]
+        if not cands:
+            continue
+        d = np.stack([np.abs(fits[q].distance(mesh.face_centroids[rest])) for q in cands])
+        trial = out.copy()
+        trial[rest] = np.asarray(cands)[np.argmin(d, axis=0)]
+        receivers = sorted(set(trial[rest].tolist()))
+        new = _fit_parts(mesh, trial, tolerance=tolerance, only=[p], upto=_ANALYTIC[-1])
+        if not new[p].ok:
+            continue
+        new.update(_fit_parts(mesh, trial, tolerance=tolerance, only=receivers))
+        if not all(new[q].ok for q in receivers):
+            continue
+        log.info("face %d was a %s: cut back to a %s, %d triangles to %d neighbours", p, fit.type, new[p].type,
+                 int((trial[rest] != p).sum()), len(receivers))
         out = trial
     return out
 
@@ -559,6 +617,10 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
         split = split_unfitted(mesh, labels, fits, tolerance=tolerance)
         if split is not labels:
             labels = _tidy(mesh, split, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        trimmed = trim_to_surface(mesh, labels, fits, tolerance=tolerance)
+        if trimmed is not labels:
+            labels = _tidy(mesh, trimmed, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
         cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
         if cut is not labels:

@@ -299,8 +299,12 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
     return region, fit
 
 
-def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=tuple(ANALYTIC_FITTERS)):
-    """Regions grown from seeds inside ``allowed``, flattest seed first. Returns a list of (faces, fit)."""
+def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=tuple(ANALYTIC_FITTERS),
+                  max_seeds: int | None = None):
+    """Regions grown from seeds inside ``allowed``, flattest seed first. Returns a list of (faces, fit).
+
+    ``max_seeds``: try at most this many seed discs (default: until every triangle was tried).
+    """
     m = len(ctx.F)
     free = allowed.copy()
     tried = ~allowed
@@ -309,11 +313,15 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
     order = np.argsort(priority, kind="stable")
     order = order[allowed[order]]
     pos = 0
+    seeds = 0
     while pos < len(order):
         seed = order[pos]
         pos += 1
         if tried[seed] or not free[seed]:
             continue
+        if max_seeds is not None and seeds >= max_seeds:
+            break
+        seeds += 1
         # the seed disc: breadth-first rings over free triangles until it holds enough vertices
         core = np.array([seed])
         incore[seed] = True
@@ -833,7 +841,7 @@ def fitted_regions(
 SPLIT_ANGLE_DEG = 30.0
 
 
-def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float) -> list:
+def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float, max_seeds: int | None = None) -> list:
     """The analytic surfaces that cover ``faces``, as regions grown from seeds inside them.
 
     For a part no one surface fits: a ring of four fillets meeting at a pocket's sharp corners is one linear
@@ -852,6 +860,8 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float)
         Unit vertex normals.
     tolerance, min_area : float
         Distance tolerance; least area a region must reach to count.
+    max_seeds : int, optional
+        Seed discs to try at most (the deepest first); default all.
 
     Returns
     -------
@@ -884,5 +894,5 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float)
         nb = np.unique(nb[nb >= 0])
         ring = nb[depth[nb] < 0]
         d += 1
-    found = _seed_regions(ctx, np.ones(len(f), bool), -depth.astype(float), min_area, area)
+    found = _seed_regions(ctx, np.ones(len(f), bool), -depth.astype(float), min_area, area, max_seeds=max_seeds)
     return [(faces[r], fit) for r, fit in found]
