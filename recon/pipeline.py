@@ -243,6 +243,23 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     return labels, fits
 
 
+def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: float, max_seeds=None):
+    """(area of the face ``tris``, the analytic regions grown inside it that reach ``min_share`` of it).
+
+    No regions for a face under twice :data:`MIN_PART_VERTICES` vertices: too small to hold two surfaces.
+    """
+    V, F = mesh.vertices, mesh.faces
+    total = float(mesh.face_areas[tris].sum())
+    if len(np.unique(F[tris])) < 2 * MIN_PART_VERTICES:
+        return total, []
+    memo = _FIT_MEMO.get()
+    vn = memo.get("vertex normals") if memo is not None else None
+    if vn is None:
+        vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
+    return total, split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=min_share * total,
+                                   max_seeds=max_seeds)
+
+
 def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
     """Labels with every part no surface fits split into the analytic surfaces inside it, where they cover it.
 
@@ -253,21 +270,14 @@ def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: flo
     the region they touch most. The split is kept only if every piece then fits its surface within
     tolerance. Returns ``labels`` itself when nothing was split.
     """
-    V, F = mesh.vertices, mesh.faces
     pairs = _faces_adjacency(mesh)
     area = mesh.face_areas
-    vn = None
     out = labels
     for p, fit in sorted(fits.items()):
         if fit.ok:
             continue
         tris = np.flatnonzero(labels == p)
-        if len(np.unique(F[tris])) < 2 * MIN_PART_VERTICES:
-            continue
-        if vn is None:
-            vn = _vertex_normals(V, F, mesh.face_normals, area)
-        total = area[tris].sum()
-        found = split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=SPLIT_MIN_SHARE * total)
+        total, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=SPLIT_MIN_SHARE)
         if len(found) < 2 or sum(area[r].sum() for r, _ in found) < SPLIT_COVER * total:
             continue
         trial = out.copy()
@@ -298,22 +308,13 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
     the face then fits an analytic surface and every face that received triangles still fits within tolerance.
     Returns ``labels`` itself when nothing was trimmed.
     """
-    V, F = mesh.vertices, mesh.faces
     pairs = _faces_adjacency(mesh)
-    area = mesh.face_areas
-    vn = None
     out = labels
     for p, fit in sorted(fits.items()):
         if fit.ok and fit.type != "bspline":
             continue
         tris = np.flatnonzero(out == p)
-        if len(np.unique(F[tris])) < 2 * MIN_PART_VERTICES:
-            continue
-        if vn is None:
-            vn = _vertex_normals(V, F, mesh.face_normals, area)
-        total = area[tris].sum()
-        found = split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=TRIM_COVER * total,
-                                 max_seeds=TRIM_SEEDS)
+        _, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=TRIM_COVER, max_seeds=TRIM_SEEDS)
         if not found:
             continue
         region = found[0][0]
