@@ -170,6 +170,31 @@ def test_torus_sector_recovers_radii_and_centre(with_normals):
     assert np.sum((np.array(fit.params["center"]) - shift) ** 2) <= 25 * np.trace(cov[2:5, 2:5])
 
 
+@pytest.mark.parametrize(
+    "fitter, sampler, kw",
+    [
+        (fit_sphere, sample_sphere, {"radius": 10.0}),
+        (fit_cylinder, sample_cylinder, {"radius": 10.0, "theta": (0, np.pi / 2)}),
+        (fit_cone, sample_cone, {}),
+        (fit_torus, sample_torus, {}),
+    ],
+)
+@pytest.mark.parametrize("n", [120, N])
+def test_direct_trust_region_loop_is_least_squares_bit_for_bit(fitter, sampler, kw, n, monkeypatch):
+    """Differential: the fitters' direct call of scipy's trust-region loop (``_primitives._solve``) against the
+    public ``least_squares`` it stands for; both passes (coarse on 400 points, then all 1500) and one pass (120)."""
+    import recon.fit._primitives as prim
+
+    rng = np.random.default_rng(11)
+    _, pts, nrm, _, _ = _posed(sampler, rng, n=n, **kw)
+    fast = fitter(pts, nrm, tolerance=TOL)
+    monkeypatch.setattr(prim, "_trf_no_bounds", None)
+    slow = fitter(pts, nrm, tolerance=TOL)
+    assert fast.type == slow.type and bool(fast) == bool(slow)
+    assert fast.params == slow.params  # plain floats: equal means bit-identical
+    assert fast.deviation == slow.deviation
+
+
 def test_distance_functions_are_exact():
     """Analytic distances of hand-picked points (the CRLB above relies on them)."""
     o = np.zeros(3)
