@@ -244,17 +244,19 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     return max(4.0 * sigma, floor)
 
 
-def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray):
+def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray, fi: _FitInput | None = None):
     """Grow one region ring by ring over ``allowed`` triangles that stay on its surface; refit as it grows.
 
     ``faces`` sorted and unique. Bookkeeping is in the region's own size (the mesh is only touched through the
-    ``inreg`` mask), so the many small seeds of a large mesh do not cost a pass over the mesh per ring.
+    ``inreg`` mask), so the many small seeds of a large mesh do not cost a pass over the mesh per ring. ``fi``:
+    the fit input ``fit`` was made from, if it is that of ``faces``.
     """
     inreg = np.zeros(len(ctx.F), bool)
     inreg[faces] = True
     members = [faces]
     frontier = faces
     size = fitted_size = len(faces)
+    # fi: the fit input of the last fit; a region that stalls right after it is fitted again on the same triangles
     while len(frontier):
         nb = ctx.adj[frontier].ravel()
         nb = nb[nb >= 0]
@@ -273,13 +275,17 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
                 region = np.sort(np.concatenate(members)) if len(members) > 1 else members[0]
                 members = [region]
                 later = ANALYTIC_FITTERS_ORDER[ANALYTIC_FITTERS_ORDER.index(fit.type) + 1 :]
-                new = _fit_input(ctx, _FitInput(ctx, region), later, polish=True) if later else None
-                if new is None:
-                    break
+                # a region with no free neighbour left cannot be carried on by any surface: the (polished) fits
+                # of the later types are only made when there is something for them to accept
                 nb = ctx.adj[region].ravel()
                 nb = nb[nb >= 0]
                 nb = np.unique(nb[allowed[nb] & ~inreg[nb]])
-                if not len(nb) or not _accept(ctx, new, nb).any():
+                if not len(nb) or not later:
+                    break
+                if fi is None or len(fi.faces) != len(region):  # the region only grows: same size, same triangles
+                    fi = _FitInput(ctx, region)
+                new = _fit_input(ctx, fi, later, polish=True)
+                if new is None or not _accept(ctx, new, nb).any():
                     break
                 fit = new
                 frontier = region
@@ -347,7 +353,7 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         fit = _fit_input(ctx, fi, types, refine=SEED_REFINE)
         if fit is None:
             continue
-        faces, fit = _grow_one(ctx, core, fit, free)
+        faces, fit = _grow_one(ctx, core, fit, free, fi)
         if area[faces].sum() < min_area:
             tried[faces] = True  # a seed inside would grow the same small region again
             continue
