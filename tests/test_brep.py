@@ -334,3 +334,56 @@ def test_periodic_bspline_fit_is_the_same_surface_in_opencascade():
     u, v = rng.uniform(u0, u1, 100), rng.uniform(v0, v1, 100)
     occ = np.array([[geom.Value(a, b).X(), geom.Value(a, b).Y(), geom.Value(a, b).Z()] for a, b in zip(u, v)])
     assert np.abs(occ - ours.evaluate(u, v)).max() <= 1e-9
+
+
+def _vertex(x, y, tol):
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.gp import gp_Pnt
+
+    v = BRepBuilderAPI_MakeVertex(gp_Pnt(x, y, 0)).Vertex()
+    BRep_Builder().UpdateVertex(v, tol)
+    return v
+
+
+def test_wire_keeps_the_shared_edges_it_is_given():
+    # Two distinct vertices 0.02 apart with tolerance 0.05: BRepBuilderAPI_MakeWire copies one edge onto the
+    # other vertex (it kept 2 of these 3 edges), unrecorded, and the neighbouring face then holds the other edge.
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+
+    from recon.brep._build import _wire
+
+    a, b1, b2, c = _vertex(0, 0, 1e-7), _vertex(10, 0, 0.05), _vertex(10, 0.02, 0.05), _vertex(0, 10, 1e-7)
+    edges = [BRepBuilderAPI_MakeEdge(a, b1).Edge(), BRepBuilderAPI_MakeEdge(b2, c).Edge(),
+             BRepBuilderAPI_MakeEdge(c, a).Edge()]
+    wire = _wire([1, 2, 3], edges)
+    exp = TopExp_Explorer(wire, TopAbs_EDGE)
+    held = []
+    while exp.More():
+        held.append(exp.Current())
+        exp.Next()
+    assert len(held) == 3 and all(h.IsSame(e) for h, e in zip(held, edges))
+
+
+def test_a_vertex_merged_by_one_face_reaches_the_edges_of_the_next():
+    # ShapeFix merging two vertices of one face is handed on: an edge of a face not built yet that meets the
+    # old vertex gets the merged one, instead of a third vertex from that face's own ShapeFix.
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge
+    from OCP.ShapeBuild import ShapeBuild_ReShape
+    from OCP.TopExp import TopExp
+    from OCP.TopoDS import TopoDS
+
+    from recon.brep._build import _hand_on, _subshapes, _wire
+
+    a, b, merged, c = _vertex(0, 0, 1e-7), _vertex(10, 0, 1e-3), _vertex(10, 0, 1e-2), _vertex(0, 10, 1e-7)
+    mine = BRepBuilderAPI_MakeEdge(a, b).Edge()
+    theirs = BRepBuilderAPI_MakeEdge(b, c).Edge()  # in another face only
+    local, shared = ShapeBuild_ReShape(), ShapeBuild_ReShape()
+    before = _subshapes([_wire([1], [mine])])
+    local.Replace(b, merged)
+    _hand_on(local, before, shared)
+    now = TopoDS.Edge_s(shared.Apply(theirs))
+    assert TopExp.FirstVertex_s(now).IsSame(merged)
+    assert TopExp.LastVertex_s(TopoDS.Edge_s(shared.Apply(mine))).IsSame(merged)
