@@ -359,17 +359,24 @@ def _orientation_vote(model: SurfaceModel, points, normals) -> int:
 
 
 def _face_on_surface(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context, *,
-                     precision: float):
-    """Face on the part's own surface; wires run counter-clockwise about the surface normal."""
+                     precision: float, both_sides: bool = True):
+    """Face on the part's own surface; wires run counter-clockwise about the surface normal.
+
+    With ``both_sides`` the face must pass BRepCheck in both orientations: a wire that BRepTools_WireExplorer
+    walks one way but not the other (p-curves jumping by a period, edges ShapeFix added) is NotClosed as soon as
+    ShapeFix_Shell turns the face over to agree with its neighbours (rocker-arm2500: a cone face on a wrong fit,
+    the one invalid face of its solid).
+    """
     try:
-        return _face_on_surface_occ(model, loops, edges, vote, context, precision)
+        return _face_on_surface_occ(model, loops, edges, vote, context, precision, both_sides)
     except BrepError:
         raise
     except Exception as err:  # OCC raises Standard_Failure subclasses
         raise BrepError(f"OpenCascade failed on the face: {type(err).__name__}: {err}") from err
 
 
-def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context, precision: float):
+def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context, precision: float,
+                         both_sides: bool):
     if vote < 0:
         loops = [-r[::-1] for r in loops]
     wires = [_wire(r, edges, context) for r in loops]
@@ -396,9 +403,10 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
     area = _area(face)
     if not area > 0:
         raise BrepError(f"face on its surface has area {area:.4g}")
-    if not BRepCheck_Analyzer(face).IsValid():
+    flipped = TopoDS.Face_s(face.Reversed())
+    if not (BRepCheck_Analyzer(face).IsValid() and (not both_sides or BRepCheck_Analyzer(flipped).IsValid())):
         _fix_edges(face)
-        problems = face_problems(face)
+        problems = face_problems(face) or (face_problems(flipped) if both_sides else "")
         if problems:
             raise BrepError(f"face on its surface is not valid ({problems})")
     _hand_on(local, before, context)
@@ -648,15 +656,23 @@ def _fallback_face(loops, edges, points, normals, context, *, precision: float, 
     except Exception as err:  # noqa: BLE001  (an OCC failure outside the checked calls is still a record)
         return None, 0.0, "failed", f"filling failed: {type(err).__name__}: {err}"
     filling = SurfaceModel("bspline", surface)
+    fvote = 1
     try:
         fvote = _orientation_vote(filling, points, normals)
         face, area = _face_on_surface(filling, loops, edges, fvote, context, precision=precision)
         return face, area, "filled", ""
     except Exception as err:  # noqa: BLE001  (BrepError or an OCC failure: fall back to the filled face)
-        area = abs(_area(filled))
-        if not area > 0 or not BRepCheck_Analyzer(filled).IsValid():
-            return None, 0.0, "failed", f"the filling face is not valid either ({err})"
-        return filled, area, "filled-sewn", f"filling surface trimmed by the shared edges failed ({err})"
+        first = str(err)
+    area = abs(_area(filled))
+    if area > 0 and BRepCheck_Analyzer(filled).IsValid():
+        return filled, area, "filled-sewn", f"filling surface trimmed by the shared edges failed ({first})"
+    try:
+        # Last resort: a face valid one way round still closes the shell, where no face leaves a hole (casting: a
+        # closed solid with this one face invalid, against an open shell with 6 free edges).
+        face, area = _face_on_surface(filling, loops, edges, fvote, context, precision=precision, both_sides=False)
+        return face, area, "filled", f"the filling face is valid one way round only ({first})"
+    except Exception:  # noqa: BLE001
+        return None, 0.0, "failed", f"the filling face is not valid either ({first})"
 
 
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
