@@ -870,6 +870,7 @@ def _assemble(faces, tolerance, open_mesh, warnings):
     builder.MakeShell(shell)
     for f in faces:
         builder.Add(shell, f)
+    sewn_shell = False
     if free_edge_count(shell) > 0 and not open_mesh:
         # Faces that did not use the shared edges (copies, fillings, failures): sew as the last resort, at the
         # smallest tolerance that closes the shell (copies of shared edges need almost none; a wide sewing
@@ -887,14 +888,16 @@ def _assemble(faces, tolerance, open_mesh, warnings):
                 break
         if best is not None:
             shell = best[2]
+            sewn_shell = True
             warnings.append(f"shell had free edges; sewn at {best[1] * tolerance:g} ({best[1]:g}× the tolerance)")
         else:
             warnings.append("shell had free edges; sewing returned no face")
     fix = ShapeFix_Shell(shell)
-    # Orientation only: every face was mended (and checked) on its own already. ShapeFix_Shell's own pass of
-    # ShapeFix_Face works at OCC's 1e-7 and re-merges what the faces share; on abc_00000050 it turned a
-    # closed manifold shell of 13 valid faces into 4 shells, two of them with 11 free edges.
-    fix.FixFaceMode = 0
+    # A shell as built needs orientation only: every face was mended (and checked) on its own already, and
+    # ShapeFix_Shell's own pass of ShapeFix_Face works at OCC's 1e-7 and re-merges what the faces share (on
+    # abc_00000050 it turned a closed manifold shell of 13 valid faces into 4 shells, two of them with 11 free
+    # edges). Sewing re-cuts edges: that pass mends what it leaves (plate_holes/coarse is invalid without it).
+    fix.FixFaceMode = -1 if sewn_shell else 0  # -1: its default
     fix.Perform()
     fixed = fix.Shape()
     shells = []
@@ -923,7 +926,7 @@ def _assemble(faces, tolerance, open_mesh, warnings):
             solids.append(sh)
             continue
         sf = ShapeFix_Solid(mk.Solid())
-        sf.FixShellTool().FixFaceMode = 0  # (as for the shell above)
+        sf.FixShellTool().FixFaceMode = -1 if sewn_shell else 0  # (as for the shell above)
         sf.Perform()
         fixed_solid = sf.Solid()
         if fixed_solid.IsNull() or fixed_solid.ShapeType() != TopAbs_SOLID:
