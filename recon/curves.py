@@ -543,8 +543,59 @@ def _project_two(pts, pa, pb, project: Projector, iterations: int, limit: float 
     return x
 
 
+#: Rounds of chord refinement per edge polyline (each can double its points, see :func:`_refined`).
+REFINE_ROUNDS = 6
+
+
+def _onto_edge(x, left: int, right: int, project: Projector, iterations: int):
+    """Points ``x`` near an edge moved onto it: onto ``left``'s surface alone for an open boundary, else onto the
+    intersection of the two surfaces (Newton steps on their tangent planes, with no limit on the distance:
+    ``x`` may be a chord's midpoint, a sagitta away from both surfaces; the caller checks where it went)."""
+    if right == OUTSIDE:
+        return project(left, x)[0]
+    return _project_two(x, left, right, project, iterations, None)
+
+
+def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float, iterations: int, max_points: int):
+    """The edge polyline with points added where a chord strays more than ``tolerance`` from the edge.
+
+    A mesh made by a CAD tessellator has long triangles: an edge between two spheres on crank is one mesh
+    segment 0.55 long on a sphere of radius 0.4, a chord 0.11 inside the surfaces (88 tolerances). Fitted as
+    the line through its two points, the edge lies that far off both faces, ShapeFix raises its tolerance to
+    match, and the face's wire intersects itself in the surface's parameters. Each round moves the midpoint
+    of every chord longer than ``tolerance`` onto the edge (:func:`_onto_edge`) and keeps it where it moved
+    by more than ``tolerance``, no more than half the chord, and lies within ``tolerance`` of both surfaces.
+    Scan-like meshes, whose segments are short for their curvature, keep their polylines as they are.
+    """
+    for _ in range(REFINE_ROUNDS):
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        long = np.flatnonzero(seg > tolerance)
+        room = max_points - len(pts)
+        if not len(long) or room <= 0:
+            break
+        mids = 0.5 * (pts[long] + pts[long + 1])
+        on = _onto_edge(mids, left, right, project, iterations)
+        # Only points that reached both surfaces: where the surfaces meet tangentially or not at all near the
+        # chord, the edge is no better defined than the chord itself.
+        gap = np.zeros(len(on))
+        for p in (left, right):
+            if p != OUTSIDE:
+                gap = np.maximum(gap, np.linalg.norm(project(p, on)[0] - on, axis=1))
+        # and a sagitta's distance away, not a far crossing of the two surfaces: a quarter circle's sagitta is
+        # 0.21 of its chord, a half circle's 0.5.
+        moved = np.linalg.norm(on - mids, axis=1)
+        off = (moved > tolerance) & (moved <= 0.5 * seg[long]) & (gap <= tolerance)
+        if not off.any():
+            break
+        keep = np.flatnonzero(off)
+        keep = keep[np.argsort(-seg[long[keep]], kind="stable")[:room]]
+        keep.sort()
+        pts = np.insert(pts, long[keep] + 1, on[keep], axis=0)
+    return pts
+
+
 def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: float, iterations: int = 6,
-                     max_points: int = 64, fit_curve=None) -> NetworkGeometry:
+                     max_points: int = 64, fit_curve=None, refine=None) -> NetworkGeometry:
     """Place the network on its surfaces and fit each edge.
 
     Parameters
@@ -560,6 +611,10 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         Polylines are resampled to at most this many points before projection (cost bound).
     fit_curve : callable, optional
         ``fit_curve(points, *, start, end, tolerance) -> EdgeCurve``; :func:`fit_edge_curve` by default.
+    refine : collection of part ids, optional
+        Parts whose surfaces are trusted to place an edge between the mesh's points: a polyline gets points
+        added where its chords stray from the edge (:func:`_refined`) only when both its parts are in it
+        (an open boundary: its one part). Default: every part.
 
     Returns
     -------
@@ -592,6 +647,10 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
             else:
                 inner = _project_two(inner, int(left), int(right), project, iterations, limit)
         pts = np.vstack([points[a][None], inner, points[b][None]])
+        if refine is None or (left in refine and (right == OUTSIDE or right in refine)):
+            pts = _refined(pts, int(left), int(right), project, tolerance=tolerance, iterations=iterations,
+                           max_points=max_points)
+        inner = pts[1:-1]
         gap = 0.0
         if len(inner):
             for p in (left, right):

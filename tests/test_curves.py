@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from recon.curves import OUTSIDE, curve_network, fit_edge_curve, meeting_point
+from recon.curves import OUTSIDE, curve_network, fit_edge_curve, meeting_point, network_geometry
 from recon.errors import InputError
 
 
@@ -199,3 +199,46 @@ def test_edge_spline_never_loops_back():
     _, _, vt = np.linalg.svd(pts - pts.mean(axis=0))
     assert not _crosses_itself((q - pts.mean(axis=0)) @ vt[:2].T)
     assert np.allclose(q[[0, -1]], pts[[0, -1]])
+
+
+def _square_prism_on_cylinder(radius=1.0, height=1.0):
+    """A square prism whose 4 vertical edges lie on a cylinder of ``radius`` about z: each side is one part, top 4,
+    bottom 5. Its rims are single mesh chords, the coarsest a CAD tessellation gives, of quarter-circle edges."""
+    ang = np.deg2rad([45.0, 135.0, 225.0, 315.0])
+    ring = np.column_stack([radius * np.cos(ang), radius * np.sin(ang)])
+    v = np.vstack([np.column_stack([ring, np.zeros(4)]), np.column_stack([ring, np.full(4, height)])])
+    faces, labels = [], []
+    for k in range(4):
+        a, b = k, (k + 1) % 4
+        faces += [[a, b, b + 4], [a, b + 4, a + 4]]
+        labels += [k, k]
+    faces += [[4, 5, 6], [4, 6, 7], [0, 2, 1], [0, 3, 2]]
+    labels += [4, 4, 5, 5]
+    return v, np.array(faces), np.array(labels)
+
+
+def test_coarse_chords_are_refined_onto_the_surfaces_edge():
+    radius, height, tol = 1.0, 1.0, 1e-3
+
+    def project(part, pts):
+        if part >= 4:  # the planes z = height (top) and z = 0 (bottom)
+            z = height if part == 4 else 0.0
+            return np.column_stack([pts[:, :2], np.full(len(pts), z)]), np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+        e = pts[:, :2] / np.linalg.norm(pts[:, :2], axis=1)[:, None]
+        return np.column_stack([radius * e, pts[:, 2]]), np.column_stack([e, np.zeros(len(pts))])
+
+    v, f, labels = _square_prism_on_cylinder(radius, height)
+    net = curve_network(v, f, labels)
+    rims = [e for e in range(net.n_edges) if max(net.edge_parts[e]) >= 4]
+    assert len(rims) == 8 and all(len(net.polyline(e)) == 2 for e in rims)
+    geo = network_geometry(net, project, tolerance=tol)
+    for e in rims:
+        c = geo.curves[e]
+        assert c.kind == "circle"
+        assert abs(c.params["radius"] - radius) <= tol
+        assert abs(c.params["t1"] - np.pi / 2) <= 1e-2
+        pts = geo.polyline(e)
+        assert np.max(np.abs(np.hypot(pts[:, 0], pts[:, 1]) - radius)) <= tol
+    # Not refined, each rim stays the chord: 1 - cos 45° = 0.29 of the radius inside the cylinder.
+    plain = network_geometry(net, project, tolerance=tol, refine=())
+    assert all(plain.curves[e].kind == "line" for e in rims)
