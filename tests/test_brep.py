@@ -219,6 +219,32 @@ def test_fitted_cylinder_mesh_gives_three_face_solid():
     assert res.validity.volume == pytest.approx(np.pi * 64 * 20, rel=7e-4)
 
 
+def test_faces_on_their_own_curves_sew_into_the_cylinder(monkeypatch):
+    # Every face made to fail on the network's edges (on copies of them, and as a filling): each is then bounded
+    # by its polylines' images in its own surface's parameters, the side band across its seam, and sewing closes
+    # them into one solid. Its faces lie on the fitted surfaces and its edges within the 0.01 tolerance of the
+    # true ones (the caps' rims are 64-point polylines of the 128-gon: a sagitta of 0.0096), so the volume is
+    # within 0.01 x the area (1407) of the cylinder's.
+    from recon.brep import _build
+    from recon.errors import BrepError
+
+    def refuse(*args, **kwargs):
+        raise BrepError("refused by the test")
+
+    monkeypatch.setattr(_build, "_face_on_surface", refuse)
+    monkeypatch.setattr(_build, "_fallback_face", lambda *a, **k: (None, 0.0, "failed", "refused by the test"))
+    m = trimesh.creation.cylinder(radius=8, height=20, sections=128).subdivide_to_size(1.0)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    nz = m.face_normals[:, 2]
+    lab = np.where(nz > 0.9, 0, np.where(nz < -0.9, 1, 2)).astype(np.int64)
+    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01)
+    assert [r.status for r in res.faces] == ["ok-sewn"] * 3
+    assert [r.surface_type for r in res.faces] == ["plane", "plane", "cylinder"]
+    assert res.ok and res.validity.n_faces == 3
+    area = 2 * np.pi * 8 * 20 + 2 * np.pi * 64
+    assert res.validity.volume == pytest.approx(np.pi * 64 * 20, abs=0.01 * area)
+
+
 @pytest.mark.parametrize("part, variant", [("plate_holes", "clean"), ("box_fillet", "noisy20")])
 def test_fixture_true_labels_fitted_surfaces(part, variant):
     # Full cylinders with two boundary loops (seam edges split by ShapeFix) and, under noise at 0.2 % of the

@@ -63,6 +63,10 @@ FILLING_TIMEOUT = 5.0
 #: must still end in a result (with failed faces) rather than run for minutes (crank: 36 faces to fill).
 FILLING_BUDGET = 30.0
 
+#: Seconds a face on its own curves (:func:`_face_on_own_curves`) may take; each took well under 0.1 s on crank
+#: and rocker-arm, where one crashed ShapeFix_Face instead.
+OWN_CURVES_TIMEOUT = 5.0
+
 #: ShapeFix_Face works at this share of the model tolerance (OCC's default is 1e-7). At the full tolerance a
 #: 30 × 20 × 10 box of B-spline faces lost 0.09 % of its volume (p-curves approximated that loosely); at 0.1
 #: and 0.01 the box is exact and box_fillet noisy20 gets all 26 faces on their own surfaces (25 at 1e-7).
@@ -350,6 +354,162 @@ def _face_on_copies(model: SurfaceModel, loops: list[np.ndarray], network: Curve
         return None, 0.0
 
 
+def _uv_loop(analysis, loop, geo: NetworkGeometry, precision: float) -> list[np.ndarray]:
+    """The UV points of each edge of ``loop`` on the surface, continuous along the loop.
+
+    Consecutive edges share their meeting point's UV exactly, and in a periodic direction each point is taken
+    a whole number of periods from where OCC puts it so that it lies nearest the point before (OCC keeps one
+    period; the loop must not jump back across it). So the loop closes in the parameter plane, up to a period
+    for a loop that goes round a periodic surface, which ShapeFix_Face gives a seam.
+    """
+    surface = analysis.Surface()
+    periods = np.array([surface.UPeriod() if surface.IsUPeriodic() else 0.0,
+                        surface.VPeriod() if surface.IsVPeriodic() else 0.0])
+    out, last = [], None
+    for r in loop:
+        pts = geo.polyline(abs(int(r)) - 1)
+        pts = pts if r > 0 else pts[::-1]
+        uvs = [] if last is None else [last]
+        for p in pts[len(uvs):]:
+            uv = analysis.ValueOfUV(_pnt(p), precision)
+            uv = np.array([uv.X(), uv.Y()])
+            if last is not None:
+                step = np.where(periods > 0, periods * np.round((uv - last) / np.where(periods > 0, periods, 1.0)), 0.0)
+                uv = uv - step
+            last = uv
+            uvs.append(uv)
+        out.append(np.array(uvs))
+    # The loop's first point, reached again: the same UV, or the same one a whole number of periods on.
+    start, end = out[0][0], out[-1][-1]
+    shift = np.where(periods > 0, periods * np.round((end - start) / np.where(periods > 0, periods, 1.0)), 0.0)
+    out[-1][-1] = start + shift
+    return out
+
+
+def _boundary_edge_count(face) -> int:
+    """Edges of ``face``, each once, not counting seams."""
+    found = TopTools_IndexedMapOfShape()
+    TopExp.MapShapes_s(face, TopAbs_EDGE, found)
+    return sum(not BRep_Tool.IsClosed_s(TopoDS.Edge_s(found.FindKey(i)), face) for i in range(1, found.Extent() + 1))
+
+
+def _pcurve(uv: np.ndarray):
+    """A degree-1 B-spline through the UV points ``uv (k, 2)`` (chord-length parameters on [0, 1])."""
+    from OCP.Geom2d import Geom2d_BSplineCurve
+    from OCP.TColgp import TColgp_Array1OfPnt2d
+    from OCP.gp import gp_Pnt2d
+
+    seg = np.linalg.norm(np.diff(uv, axis=0), axis=1)
+    keep = np.concatenate([[True], seg > 1e-12])
+    keep[-1] = True
+    uv = uv[keep]
+    if len(uv) < 2 or np.linalg.norm(uv[-1] - uv[0]) <= 1e-12 and len(uv) < 3:
+        raise BrepError("an edge is a point in the surface's parameters")
+    t = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(uv, axis=0), axis=1))])
+    t /= t[-1]
+    poles = TColgp_Array1OfPnt2d(1, len(uv))
+    for i, (u, v) in enumerate(uv, 1):
+        poles.SetValue(i, gp_Pnt2d(float(u), float(v)))
+    knots = TColStd_Array1OfReal(1, len(uv))
+    mults = TColStd_Array1OfInteger(1, len(uv))
+    for i, x in enumerate(t, 1):
+        knots.SetValue(i, float(x))
+        mults.SetValue(i, 2 if i in (1, len(uv)) else 1)
+    return Geom2d_BSplineCurve(poles, knots, mults, 1)
+
+
+def _face_on_own_curves(model: SurfaceModel, loops: list[np.ndarray], geo: NetworkGeometry, vote: int, *,
+                        precision: float):
+    """The part's face bounded by its edge polylines projected onto its own surface, or ``(None, 0.0)``.
+
+    The last resort before a filling: each edge is its polyline's image in the surface's parameters (a
+    p-curve) with the 3D curve built from it, so the face's edges lie on its surface exactly and its wires
+    close in the parameter plane by construction. The shared network edges lie on the surface only within
+    the fit's residual, and where that residual is large (a poor fit, a CAD tessellation's long chords) the
+    p-curves ShapeFix projects from them can miss each other (BRepCheck NotClosed) or cross
+    (SelfIntersectingWire). The face has edges of its own, up to the edge gap from its neighbours': sewing
+    joins them.
+    """
+    try:
+        face = _face_in_child(lambda: _own_curves_face(model, loops, geo, vote, precision), "ShapeFix_Face",
+                              OWN_CURVES_TIMEOUT)
+        return face, abs(_area(face))
+    except BrepError as err:
+        log.info("%s face on its own curves failed: %s", model.kind, err)
+        return None, 0.0
+
+
+def _own_curves_face(model: SurfaceModel, loops: list[np.ndarray], geo: NetworkGeometry, vote: int,
+                     precision: float):
+    """:func:`_face_on_own_curves`' face, made in this process; raises :class:`BrepError`."""
+    from OCP.ShapeAnalysis import ShapeAnalysis_Surface
+
+    try:
+        analysis = ShapeAnalysis_Surface(model.geom)
+        builder = BRep_Builder()
+        wires = []
+        for loop in (loops if vote > 0 else [-r[::-1] for r in loops]):
+            uvs = _uv_loop(analysis, loop, geo, 1e-3 * precision)
+            wire = TopoDS_Wire()
+            builder.MakeWire(wire)
+            first = vtx = None
+            for k, uv in enumerate(uvs):
+                c2d = _pcurve(uv)
+                if vtx is None:
+                    p = model.geom.Value(*map(float, uv[0]))
+                    first = vtx = BRepBuilderAPI_MakeVertex(p).Vertex()
+                closing = k == len(uvs) - 1
+                end = first if closing else BRepBuilderAPI_MakeVertex(model.geom.Value(*map(float, uv[-1]))).Vertex()
+                mk = BRepBuilderAPI_MakeEdge(c2d, model.geom, vtx, end, c2d.FirstParameter(), c2d.LastParameter())
+                if not mk.IsDone():
+                    raise BrepError(f"BRepBuilderAPI_MakeEdge on the surface failed ({mk.Error()})")
+                edge = mk.Edge()
+                BRepLib.BuildCurves3d_s(edge, 1e-3 * precision)
+                builder.Add(wire, edge)
+                vtx = end
+            wires.append(wire)
+        mk = BRepBuilderAPI_MakeFace(model.geom, wires[0], False)
+        if not mk.IsDone():
+            raise BrepError(f"BRepBuilderAPI_MakeFace failed ({mk.Error()})")
+        for w in wires[1:]:
+            mk.Add(w)
+        fix = ShapeFix_Face(mk.Face())
+        fix.SetPrecision(PRECISION_SHARE * precision)
+        fix.SetMaxTolerance(10.0 * precision)
+        fix.Perform()
+        face = fix.Face()
+        # ShapeFix drops a wire it cannot mend (rocker-arm: a cone left with only its hole). It may split edges
+        # and join a band's two wires with a seam, but every edge it was given is still there, in pieces.
+        kept, given = _boundary_edge_count(face), sum(len(loop) for loop in loops)
+        if kept < given:
+            raise BrepError(f"face on its own curves kept {kept} of its {given} edges")
+        area = _area(face)
+        if not area > 0:
+            raise BrepError(f"face on its own curves has area {area:.4g}")
+        flipped = TopoDS.Face_s(face.Reversed())
+        problems = face_problems(face) or face_problems(flipped)
+        if problems:
+            raise BrepError(f"face on its own curves is not valid ({problems})")
+        return flipped if vote < 0 else face
+    except BrepError:
+        raise
+    except Exception as err:  # OCC raises Standard_Failure subclasses
+        raise BrepError(f"{type(err).__name__}: {err}") from err
+
+
+def _face_on_own_edges(model: SurfaceModel, loops: list[np.ndarray], network: CurveNetwork, geo: NetworkGeometry,
+                       vote: int, *, precision: float):
+    """A face on edges of its own, for sewing: on copies of the shared curves, else on its own p-curves.
+
+    Returns ``(face or None, area, how it was built)``.
+    """
+    face, area = _face_on_copies(model, loops, network, geo, vote, precision=precision)
+    if face is not None:
+        return face, area, "built on copies of them"
+    face, area = _face_on_own_curves(model, loops, geo, vote, precision=precision)
+    return face, area, "built on its own curves"
+
+
 def _orientation_vote(model: SurfaceModel, points, normals) -> int:
     """+1 if the surface's own normal agrees with the mesh's outward normals on this part, else -1."""
     if len(points) == 0:
@@ -587,26 +747,25 @@ def _wait_child(pid: int, timeout: float):
         delay = min(0.05, 2 * delay)
 
 
-def _isolated_filled_face(loops, edges, points, context, *, timeout: float = FILLING_TIMEOUT):
-    """:func:`_filled_face` in a forked child process, killed after ``timeout`` seconds.
+def _face_in_child(build, what: str, timeout: float):
+    """The face ``build()`` returns, computed in a forked child process killed after ``timeout`` seconds.
 
-    ``BRepOffsetAPI_MakeFilling`` can crash the whole process (a segmentation fault inside GeomPlate on
-    noisy boundaries, seen on the box_fillet noisy20 fixture) where no exception can be caught, or spin for
-    minutes (``ProjLib_CompProjectedCurve`` inside ``GeomPlate_BuildPlateSurface``, box_fillet noisy05). In a
-    child the crash or the hang costs one face, not the user's session: the face comes back through a BREP
-    file.
+    Some OCC calls can crash the whole process where no exception can be caught (a segmentation fault inside
+    GeomPlate on noisy boundaries, box_fillet noisy20; inside ShapeFix_Face on a rocker-arm cone's own curves)
+    or spin for minutes (``ProjLib_CompProjectedCurve`` inside ``GeomPlate_BuildPlateSurface``, box_fillet
+    noisy05). In a child the crash or the hang costs one face, not the user's session: the face comes back
+    through a BREP file. ``build`` raises :class:`BrepError` for a face it cannot make.
     """
     if not hasattr(os, "fork"):
-        return _filled_face(loops, edges, points, context)
-    fd, path = tempfile.mkstemp(suffix=".brep", prefix="recon_fill_")
+        return build()
+    fd, path = tempfile.mkstemp(suffix=".brep", prefix="recon_face_")
     os.close(fd)
     try:
         pid = os.fork()
         if pid == 0:  # child: compute, write, leave without running the parent's cleanup
             code = 3
             try:
-                face, _ = _filled_face(loops, edges, points, context)
-                code = 0 if BRepTools.Write_s(face, path) else 3
+                code = 0 if BRepTools.Write_s(build(), path) else 3
             except BrepError as err:
                 with open(path, "w") as fh:
                     fh.write(str(err))
@@ -617,22 +776,28 @@ def _isolated_filled_face(loops, edges, points, context, *, timeout: float = FIL
                 os._exit(code)
         status = _wait_child(pid, timeout)
         if status is None:
-            raise BrepError(f"BRepOffsetAPI_MakeFilling did not finish within {timeout:g} s; the part has no face")
+            raise BrepError(f"{what} did not finish within {timeout:g} s; the part has no face")
         if os.WIFSIGNALED(status):
-            raise BrepError(f"BRepOffsetAPI_MakeFilling crashed (signal {os.WTERMSIG(status)}); the part has no face")
+            raise BrepError(f"{what} crashed (signal {os.WTERMSIG(status)}); the part has no face")
         code = os.WEXITSTATUS(status)
         if code == 2:
             with open(path) as fh:
                 raise BrepError(fh.read())
         if code != 0:
-            raise BrepError("BRepOffsetAPI_MakeFilling failed")
+            raise BrepError(f"{what} failed")
         shape = TopoDS_Shape()
         if not BRepTools.Read_s(shape, path, BRep_Builder()) or shape.IsNull() or shape.ShapeType() != TopAbs_FACE:
-            raise BrepError("BRepOffsetAPI_MakeFilling returned no face")
-        face = TopoDS.Face_s(shape)
-        return face, BRep_Tool.Surface_s(face)
+            raise BrepError(f"{what} returned no face")
+        return TopoDS.Face_s(shape)
     finally:
         os.unlink(path)
+
+
+def _isolated_filled_face(loops, edges, points, context, *, timeout: float = FILLING_TIMEOUT):
+    """:func:`_filled_face` in a child process (:func:`_face_in_child`); returns the face and its surface."""
+    face = _face_in_child(lambda: _filled_face(loops, edges, points, context)[0], "BRepOffsetAPI_MakeFilling",
+                          timeout)
+    return face, BRep_Tool.Surface_s(face)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -732,7 +897,11 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
             return np.array(pts, dtype=np.float64), np.zeros_like(pts, dtype=np.float64)
         return models[part].project(pts)
 
-    geo = network_geometry(network, project, tolerance=tolerance)
+    # Chords are refined onto the edge only between surfaces fitted within tolerance: a poor fit can cross its
+    # neighbour well away from the mesh (pocket coarse: the fillet ring's B-spline, its face then
+    # self-intersecting), where the mesh's own boundary is the better guess.
+    trusted = {p for p in network.parts.tolist() if models[p] is not None and bool(getattr(surfaces[p], "ok", True))}
+    geo = network_geometry(network, project, tolerance=tolerance, refine=trusted)
     builder = BRep_Builder()
 
     # Shared vertices and edges: each made once.
@@ -791,6 +960,14 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
             face, area, status, msg2 = _fallback_face(loops, edges, pts, nrm, context, precision=tolerance,
                                                       timeout=left)
             msg = "; ".join(m for m in (msg, msg2) if m)
+            if face is None and (fit_ok or near):
+                # Its own surface after all, on curves of its own: a filling bounded by the shared edges needs no
+                # sewing and goes first (casting: a filling closes the solid, a face on own curves left 2 free
+                # edges after sewing).
+                face, area = _face_on_own_curves(model, loops, geo, vote, precision=tolerance)
+                if face is not None:
+                    status = f"{own_status}-sewn"
+                    warnings.append(f"{name}: {msg}; built on its own curves, joined by sewing")
             if face is None:
                 if fit_ok or near or model is None:  # (a near fit's own face was tried first)
                     warnings.append(f"{name}: no face ({msg})")
@@ -801,14 +978,14 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                         status = "poor"
                     except BrepError as err:
                         msg = f"{msg}; {err}"
-                        face, area = _face_on_copies(model, loops, network, geo, vote, precision=tolerance)
+                        face, area, _ = _face_on_own_edges(model, loops, network, geo, vote, precision=tolerance)
                         status = "poor-sewn"
                     if face is not None:
                         warnings.append(f"{name}: {msg}; kept its out-of-tolerance {model.kind} face")
                     else:
                         status = "failed"
                         warnings.append(f"{name}: no face ({msg})")
-            else:
+            elif status.startswith("filled"):
                 warnings.append(f"{name}: own face failed ({msg}); replaced by a filling B-spline")
         elif near:
             warnings.append(f"{name}: {msg}; kept its out-of-tolerance {model.kind} face")
@@ -840,6 +1017,7 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         first = next((r.message for r in records if r.message), "")
         raise BrepError(f"none of the {len(records)} parts got a face (first: {first})")
     shape = _assemble(faces, tolerance, open_mesh, warnings)
+    _mend_faces(shape, tolerance, warnings)
     # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
     final_faces = []
     exp = TopExp_Explorer(shape, TopAbs_FACE)
@@ -945,6 +1123,32 @@ def _assemble(faces, tolerance, open_mesh, warnings):
         builder.Add(comp, s)
     warnings.append(f"{len(solids)} bodies: the result is a compound")
     return comp
+
+
+def _mend_faces(shape, tolerance: float, warnings) -> None:
+    """Mend, in place, faces of the assembled ``shape`` that BRepCheck refuses: edges made same-parameter, then
+    ShapeFix_Wire's self-intersection fix.
+
+    Every face was valid when it was built; sewing at a tolerance above the edges' own re-cuts and re-tolerances
+    them (rocker-arm: one valid B-spline face self-intersecting after sewing at 10× the tolerance, the one
+    fault of a closed solid of 112 faces; valid after this, volume changed by 7e-6).
+    """
+    from OCP.ShapeFix import ShapeFix_Wire
+
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        face = TopoDS.Face_s(exp.Current())
+        exp.Next()
+        if BRepCheck_Analyzer(face).IsValid():
+            continue
+        _fix_edges(face)
+        if not BRepCheck_Analyzer(face).IsValid():
+            wires = TopExp_Explorer(face, TopAbs_WIRE)
+            while wires.More():
+                ShapeFix_Wire(TopoDS.Wire_s(wires.Current()), face, PRECISION_SHARE * tolerance).FixSelfIntersection()
+                wires.Next()
+        problems = face_problems(face)
+        warnings.append(f"a face invalid after assembly was mended in place{f'; still: {problems}' if problems else ''}")
 
 
 def _sewn(faces, tolerance: float):
