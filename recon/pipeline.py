@@ -220,8 +220,10 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     """Merge neighbouring faces that one analytic surface covers within tolerance.
 
     The decomposition can leave a face in two pieces (a sliver patch beside its face, a face cut by a
-    short feature); two neighbours whose fits have the same analytic type and whose union one such surface
-    fits are one face. Pairs are tried largest shared boundary first; returns the new labels and fits.
+    short feature); two analytic neighbours whose union one analytic surface fits are one face. The pieces
+    need not have the type of the whole: a small piece of a cone fits a plane or a cylinder within tolerance
+    (revolved noisy20's cone lay in cone, cylinder and plane pieces). Pairs are tried largest shared boundary
+    first; returns the new labels and fits.
     """
     labels = labels.copy()
     fits = dict(fits)
@@ -236,12 +238,11 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
         merged = False
         for (p, q) in uniq[np.argsort(-count, kind="stable")].tolist():
             fp, fq = fits.get(p), fits.get(q)
-            if not (fp and fq and fp.type == fq.type and fp.type in _ANALYTIC):
+            if not (fp and fq and fp.type in _ANALYTIC and fq.type in _ANALYTIC):
                 continue
             union = np.where(labels == q, p, labels)
-            # only the same type merges: the types before it decide as in a full fit, the rest cannot win
-            fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p], upto=fp.type)[p]
-            if fit and fit.type == fp.type:
+            fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p], upto=_ANALYTIC[-1])[p]
+            if fit:
                 labels, fits[p] = union, fit
                 del fits[q]
                 merged = True
