@@ -252,7 +252,8 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     return labels, fits
 
 
-def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: float, max_seeds=None):
+def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: float, max_seeds=None,
+                  types=_ANALYTIC):
     """(area of the face ``tris``, the analytic regions grown inside it that reach ``min_share`` of it).
 
     No regions for a face under twice :data:`MIN_PART_VERTICES` vertices: too small to hold two surfaces.
@@ -266,7 +267,7 @@ def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: 
     if vn is None:
         vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
     return total, split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=min_share * total,
-                                   max_seeds=max_seeds)
+                                   max_seeds=max_seeds, types=types)
 
 
 def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
@@ -308,23 +309,29 @@ def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: flo
 
 
 def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
-    """Labels with every B-spline (or unfitted) face that is mostly one analytic surface cut back to it.
+    """Labels with every B-spline (or unfitted) face that is mostly one analytic surface cut back to it, and
+    every curved face that is mostly a plane cut back to the plane.
 
     Under noise a face can take in slivers of its neighbours (a chamfer's edge on a large plane): one plane
-    no longer fits it, a B-spline does, and the plane becomes a free-form face. When one analytic region
-    grown inside the face (:func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of
-    its area, the rest goes to the neighbouring face whose surface passes nearest; the trim is kept only if
-    the face then fits an analytic surface and every face that received triangles still fits its own type
-    within tolerance.
+    no longer fits it, a B-spline does, and the plane becomes a free-form face — or a curved surface bends
+    to take the slivers in within tolerance (box_chamfer noisy20: chamfers and a box face as cones and
+    cylinders). When one analytic region grown inside the face (for a curved face, a plane region;
+    :func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of its area, the rest goes
+    to the neighbouring face whose surface passes nearest; the trim is kept only if the face then fits an
+    analytic surface (for a curved face, a plane) and every face that received triangles still fits its own
+    type within tolerance.
     Returns ``labels`` itself when nothing was trimmed.
     """
     pairs = _faces_adjacency(mesh)
     out = labels
     for p, fit in sorted(fits.items()):
-        if fit.ok and fit.type != "bspline":
+        # a free-form face may be cut back to any analytic surface, a curved one to a plane
+        simpler = _ANALYTIC if not fit.ok or fit.type == "bspline" else ("plane",) if fit.type != "plane" else ()
+        if not simpler:
             continue
         tris = np.flatnonzero(out == p)
-        _, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=TRIM_COVER, max_seeds=TRIM_SEEDS)
+        _, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=TRIM_COVER, max_seeds=TRIM_SEEDS,
+                                 types=simpler)
         if not found:
             continue
         region = found[0][0]
@@ -341,7 +348,7 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
         trial[rest] = np.asarray(cands)[np.argmin(d, axis=0)]
         receivers = sorted(set(trial[rest].tolist()))
         new = _fit_parts(mesh, trial, tolerance=tolerance, only=[p], upto=_ANALYTIC[-1])
-        if not new[p].ok:
+        if not new[p].ok or new[p].type not in simpler:
             continue
         new.update(_fit_parts(mesh, trial, tolerance=tolerance, only=receivers))
         if not all(new[q].ok and new[q].type == fits[q].type for q in receivers):
@@ -388,7 +395,7 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
     misfits = {q: _residual_scale(fits[q], V[np.unique(F[labels == q])]) > MISFIT_SCALE * noise
                for q in analytic.tolist()}
 
-    def on(q, tris):  # the largest vertex distance of each triangle to face q's surface; inf where it does not lie on it
+    def on(q, tris):  # each triangle's largest vertex distance to face q's surface; inf if it does not lie on it
         d = np.abs(fits[q].distance(V[F[tris]].reshape(-1, 3))).reshape(-1, 3).max(axis=1)
         n = surface_normals(fits[q], mesh.face_centroids[tris])
         lies = (d <= tolerance) & (np.abs(np.einsum("ij,ij->i", n, mesh.face_normals[tris])) >= cos_min)

@@ -82,10 +82,10 @@ def test_python_api_returns_a_build123d_solid_to_keep_modelling():
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
-@pytest.mark.parametrize("part", ["box_fillet", "plate_holes", "pocket", "prism", "lofted"])
+@pytest.mark.parametrize("part", ["box_chamfer", "box_fillet", "plate_holes", "pocket", "prism", "lofted", "revolved"])
 def test_noisy_fixture_converts_to_a_valid_solid_with_about_its_true_faces(part):
     """Issue 5's noisy target, σ = 0.2 % of the diagonal: a valid closed solid, face count within 15 % of the
-    truth. (box_chamfer and revolved do not meet the face count yet: bench/RESULTS.md.)"""
+    truth."""
     from recon import convert
     from recon.fixtures import load_fixture
 
@@ -283,9 +283,8 @@ def test_filleted_box_under_light_noise_has_its_true_faces():
 def test_revolved_part_under_heavy_noise_recovers_every_face_with_its_type():
     """revolved at σ = 0.2 % of the diagonal. The decomposition leaves the cone in eleven parts, whose pieces
     fit planes, spheres and cylinders within tolerance (19 faces, the cone recovered nowhere). A sphere fits
-    the cone's pieces only with a systematic misfit, and merged with their neighbours they are one cone: each
-    true face is now recovered (area IoU ≥ 0.5) by a face of its own type, and at most one face is extra
-    (a second cone piece: a few cylinder triangles in it keep the union's max distance over 2·tolerance)."""
+    the cone's pieces only with a systematic misfit, and merged with their neighbours they are one cone: the
+    solid has the true six faces, each recovering a true face (area IoU ≥ 0.5) with that face's type."""
     from recon import convert
     from recon.decompose import face_recovery
     from recon.fixtures import load_fixture
@@ -293,8 +292,27 @@ def test_revolved_part_under_heavy_noise_recovers_every_face_with_its_type():
     fx = load_fixture("revolved", "noisy20")
     result = convert((fx.vertices, fx.faces), deviation=False)
     assert result.brep.validity.ok, result.report["validity"]
-    assert result.report["n_faces"] <= len(fx.true_faces) + 1
+    assert result.report["faces_by_type"] == {"cylinder": 2, "plane": 2, "cone": 1, "torus": 1}
     rec = face_recovery(result.labels, fx.labels[result.mesh.source_face], result.mesh.face_areas)
     assert (rec.iou >= 0.5).all(), rec.iou
     ours = [result.fits[int(p)].type for p in rec.best_part]
     assert ours == [fx.true_faces[int(t)].type for t in rec.true_ids]
+
+
+def test_chamfered_box_under_heavy_noise_is_planes():
+    """box_chamfer at σ = 0.2 %: the chamfers are ~1.5 triangles wide, and a cylinder or cone covered a
+    chamfer with strips of both its planes within tolerance (30 faces, 45 % of the area of a true type).
+    Grown back over their borders and cut back to the planes inside them, the faces are planes again: the
+    issue's target of 90 % of the true area in faces of its type (all planes), and at most the truth's 26
+    faces + 15 %. (The 8 corner triangles, 4 mesh triangles each, are not recovered under this noise.)"""
+    from recon import convert
+    from recon.bench import type_agreement
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture("box_chamfer", "noisy20")
+    result = convert((fx.vertices, fx.faces), deviation=False)
+    assert result.brep.validity.ok, result.report["validity"]
+    assert result.report["n_faces"] <= 1.15 * len(fx.true_faces)
+    agreement = type_agreement(result.labels, fx.labels[result.mesh.source_face], result.mesh.face_areas,
+                               {p: f.type for p, f in result.fits.items()}, [f.type for f in fx.true_faces])
+    assert agreement >= 0.9

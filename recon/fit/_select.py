@@ -32,9 +32,9 @@ SIGMAS_PER_TOLERANCE = 4.0
 #: Median |d| of a normal residual is 0.6745σ: the robust scale is 1.4826 × the median.
 MAD_TO_SIGMA = 1.4826
 #: A type within tolerance misfits its points when its residual scale is above √2 × the noise: a systematic
-#: deviation as large as the noise itself (σ̂² = σ² + b², b ≥ σ). Below it the residual is the noise plus what a
-#: sliver of a neighbouring face adds (box_fillet noisy20: a plane with fillet slivers at 1.07σ, which a cylinder
-#: of radius 700 took to 1.01σ).
+#: deviation as large as the noise itself (σ̂² = σ² + b², b ≥ σ). Below it the residual is the noise plus what
+#: a sliver of a neighbouring face adds (box_fillet noisy20: a plane with fillet slivers at 1.07σ, which a
+#: cylinder of radius 700 took to 1.01σ).
 MISFIT_SCALE = float(np.sqrt(2.0))
 
 
