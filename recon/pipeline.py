@@ -22,6 +22,7 @@ from .decompose import Decomposition, decompose
 from .decompose._regions import split_by_fitting
 from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
+from .fit._select import SIGMAS_PER_TOLERANCE
 from .mesh import Mesh, clean_mesh, load_mesh
 
 __all__ = ["Conversion", "convert", "face_labels", "STAGES"]
@@ -385,14 +386,15 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
     nothing moved.
     """
     from .decompose._quickfit import surface_normals
-    from .fit._select import MISFIT_SCALE, SIGMAS_PER_TOLERANCE, _residual_scale
+    from .fit._select import MISFIT_SCALE, _residual_scale
 
     V, F = mesh.vertices, mesh.faces
     pairs = _faces_adjacency(mesh)
     cos_min = np.cos(np.deg2rad(GROW_ANGLE_DEG))
     analytic = np.array(sorted(q for q, f in fits.items() if f.ok and f.type in _ANALYTIC), dtype=np.int64)
-    noise = tolerance / SIGMAS_PER_TOLERANCE
-    misfits = {q: _residual_scale(fits[q], V[np.unique(F[labels == q])]) > MISFIT_SCALE * noise
+    memo = _FIT_MEMO.get()
+    noise = memo.get("noise") if memo is not None else None  # None: a noise-free mesh, where no surface misfits
+    misfits = {q: noise is not None and _residual_scale(fits[q], V[np.unique(F[labels == q])]) > MISFIT_SCALE * noise
                for q in analytic.tolist()}
 
     def on(q, tris):  # each triangle's largest vertex distance to face q's surface; inf if it does not lie on it
@@ -597,6 +599,8 @@ def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None, u
 def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = None) -> SurfaceFit:
     """The surface of one part: its triangles ``tris`` (k, 3) (vertex ids into ``V``); ``p`` names it in the log."""
     ids, local = np.unique(tris, return_inverse=True)
+    memo = _FIT_MEMO.get()
+    noise = memo.get("noise") if memo is not None else None
     if MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:  # a corner kept by `_small_faces`
         plane = fit_plane(V[ids], tolerance=tolerance)
         if plane.ok:
@@ -606,8 +610,8 @@ def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = Non
                           f"{len(ids)} vertices: too few for a surface")
     if upto is not None:
         return fit_surface(V[ids], vn[ids], tolerance=tolerance, types=_ANALYTIC[: _ANALYTIC.index(upto) + 1],
-                           allow_bspline=False)
-    fit = fit_surface(V[ids], vn[ids], tolerance=tolerance, faces=local.reshape(-1, 3))
+                           allow_bspline=False, sigma=noise)
+    fit = fit_surface(V[ids], vn[ids], tolerance=tolerance, faces=local.reshape(-1, 3), sigma=noise)
     if not fit.params:  # nothing at all could be fitted: the B-spline must carry it
         log.warning("part %d: no surface fits (%s)", p, fit.reason)
     return fit
@@ -715,7 +719,9 @@ def convert(
 
 def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[np.ndarray, dict]:
     """The fit stage: the face label of every triangle and the surface of every face."""
-    token = _FIT_MEMO.set({})
+    # On a noisy mesh the tolerance is the noise's 4σ; on a noise-free one (the decomposition measures σ = 0:
+    # casting, the clean fixtures) it is a floor and the residuals are the tessellation's, not noise.
+    token = _FIT_MEMO.set({"noise": tolerance / SIGMAS_PER_TOLERANCE if dec.noise > 0 else None})
     try:
         labels = face_labels(mesh, dec, tolerance=tolerance)
         fits = _fit_parts(mesh, labels, tolerance=tolerance)

@@ -27,7 +27,8 @@ ANALYTIC_FITTERS = {
 }
 #: Free parameters of each analytic type (the order above is by them).
 N_PARAMS = {"plane": 3, "sphere": 4, "cylinder": 5, "cone": 6, "torus": 7}
-#: The noise σ a tolerance stands for: the default tolerance is 4σ (:func:`recon.fit.default_tolerance`).
+#: The noise σ a tolerance stands for on a noisy mesh: the default tolerance is 4σ
+#: (:func:`recon.fit.default_tolerance`).
 SIGMAS_PER_TOLERANCE = 4.0
 #: Median |d| of a normal residual is 0.6745σ: the robust scale is 1.4826 × the median.
 MAD_TO_SIGMA = 1.4826
@@ -46,6 +47,7 @@ def fit_surface(
     types=("plane", "sphere", "cylinder", "cone", "torus"),
     allow_bspline: bool = True,
     faces=None,
+    sigma: float | None = None,
 ) -> SurfaceFit:
     """Fit the simplest surface type that matches the points within ``tolerance``.
 
@@ -61,9 +63,10 @@ def fit_surface(
     Within tolerance is not yet explained: a simpler type can pass with a *systematic* misfit while a later
     one leaves only the noise (revolved noisy20: a sphere holds the cone of half-angle 37° within tolerance
     with a robust residual of 2.2σ, the cone leaves 1.0σ; the band used to become spheres). So when the
-    first accepted type's residual is above the noise level, the later analytic types are fitted too and the
-    one of least Bayesian information criterion wins (:func:`_least_complex`); at the noise level nothing can
-    do better and the first type stands.
+    points' noise ``sigma`` is given and the first accepted type's residual is above it, the later analytic
+    types are fitted too and the one of least Bayesian information criterion wins (:func:`_least_complex`);
+    at the noise level nothing can do better and the first type stands. Without ``sigma`` (a noise-free mesh,
+    whose residuals are its tessellation's, not noise) the first type within tolerance is the answer.
 
     Parameters
     ----------
@@ -79,6 +82,8 @@ def fit_surface(
         Fall back to :func:`fit_bspline_surface` when no analytic type fits.
     faces : (m, 3) int, optional
         The patch's triangles, for the B-spline's parametrisation when the patch is not a height field.
+    sigma : float, optional
+        The points' noise σ (the tolerance is best its 4σ, as the default is); see above.
 
     Returns
     -------
@@ -108,7 +113,9 @@ def fit_surface(
             continue
         if fit:
             log.debug("fit_surface: %s accepted (%s)", kind, fit.deviation)
-            return fit if kind == "bspline" else _least_complex(fit, pts, normals, tolerance=tolerance, types=types)
+            if kind == "bspline" or sigma is None:
+                return fit
+            return _least_complex(fit, pts, normals, tolerance=tolerance, sigma=sigma, types=types)
         candidates.append(fit)
     if not candidates:
         raise FitError("`types` is empty and `allow_bspline` is False: nothing to fit")
@@ -124,15 +131,15 @@ def _residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
     return MAD_TO_SIGMA * float(np.median(np.abs(fit.distance(pts))))
 
 
-def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, types) -> SurfaceFit:
+def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: float, types) -> SurfaceFit:
     """The analytic type of least BIC among ``first`` (the simplest within tolerance) and the later ones.
 
     Only when ``first`` misfits: its robust residual scale σ̂ (:func:`_residual_scale`) is above
-    :data:`MISFIT_SCALE` × the noise level the tolerance stands for (tolerance / :data:`SIGMAS_PER_TOLERANCE`);
-    otherwise it is returned without fitting the others. BIC (Schwarz 1978) for Gaussian residuals of scale σ̂
-    with k parameters: n ln σ̂² + k ln n, σ̂ floored at the noise level (a smaller residual is no evidence).
+    :data:`MISFIT_SCALE` × the noise ``sigma``; otherwise it is returned without fitting the others. BIC
+    (Schwarz 1978) for Gaussian residuals of scale σ̂ with k parameters: n ln σ̂² + k ln n, σ̂ floored at the
+    noise (a smaller residual is no evidence).
     """
-    floor = tolerance / SIGMAS_PER_TOLERANCE
+    floor = float(sigma)
     n = len(pts)
     scale = _residual_scale(first, pts)
     if scale <= MISFIT_SCALE * floor:
