@@ -82,10 +82,10 @@ def test_python_api_returns_a_build123d_solid_to_keep_modelling():
 MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
-@pytest.mark.parametrize("part", ["box_fillet", "plate_holes", "pocket", "prism", "lofted"])
+@pytest.mark.parametrize("part", ["box_chamfer", "box_fillet", "plate_holes", "pocket", "prism", "lofted", "revolved"])
 def test_noisy_fixture_converts_to_a_valid_solid_with_about_its_true_faces(part):
     """Issue 5's noisy target, σ = 0.2 % of the diagonal: a valid closed solid, face count within 15 % of the
-    truth. (box_chamfer and revolved do not meet the face count yet: bench/RESULTS.md.)"""
+    truth."""
     from recon import convert
     from recon.fixtures import load_fixture
 
@@ -244,3 +244,75 @@ def test_a_face_that_took_in_a_sliver_is_cut_back_to_its_plane():
     assert not (fits[top].ok and fits[top].type == "plane")
     trimmed = trim_to_surface(mesh, labels, fits, tolerance=tolerance)
     np.testing.assert_array_equal(trimmed, truth)
+
+
+def test_a_strip_given_to_a_neighbour_returns_to_the_face_it_lies_on():
+    """The same strip given to the top face: the top then fits no plane (a B-spline carries it), the side's
+    plane holds every triangle of the strip (on it, normal along it), so growing the faces over their borders
+    gives the strip back and every face is one plane of the box again."""
+    from recon.mesh import clean_mesh
+    from recon.pipeline import _fit_parts, grow_faces
+
+    box = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
+    mesh = clean_mesh(box.vertices, box.faces)
+    n = mesh.face_normals
+    truth = np.argmax(np.abs(n), axis=1) * 2 + (n[np.arange(len(n)), np.argmax(np.abs(n), axis=1)] > 0)
+    labels = truth.copy()
+    top, side = int(truth[np.argmax(n[:, 2])]), int(truth[np.argmax(n[:, 0])])
+    strip = (labels == side) & (mesh.face_centroids[:, 2] > 5.0 - 1.0)
+    labels[strip] = top
+    tolerance = 1e-3
+    fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    assert fits[top].type == "bspline" and fits[side].type == "plane"
+    np.testing.assert_array_equal(grow_faces(mesh, labels, fits, tolerance=tolerance), truth)
+
+
+def test_filleted_box_under_light_noise_has_its_true_faces():
+    """box_fillet at σ = 0.05 % of the diagonal: 6 planes, 12 fillet cylinders, 8 corner spheres. The
+    decomposition's borders left pieces of fillets in B-spline faces (30 faces, 7 B-splines); grown over their
+    borders, the faces take back the triangles that lie on their surfaces and are the true 26."""
+    from recon import convert
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture("box_fillet", "noisy05")
+    result = convert((fx.vertices, fx.faces), deviation=False)
+    assert result.brep.validity.ok, result.report["validity"]
+    assert result.report["faces_by_type"] == {"plane": 6, "cylinder": 12, "sphere": 8}
+
+
+def test_revolved_part_under_heavy_noise_recovers_every_face_with_its_type():
+    """revolved at σ = 0.2 % of the diagonal. The decomposition leaves the cone in eleven parts, whose pieces
+    fit planes, spheres and cylinders within tolerance (19 faces, the cone recovered nowhere). A sphere fits
+    the cone's pieces only with a systematic misfit, and merged with their neighbours they are one cone: the
+    solid has the true six faces, each recovering a true face (area IoU ≥ 0.5) with that face's type."""
+    from recon import convert
+    from recon.decompose import face_recovery
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture("revolved", "noisy20")
+    result = convert((fx.vertices, fx.faces), deviation=False)
+    assert result.brep.validity.ok, result.report["validity"]
+    assert result.report["faces_by_type"] == {"cylinder": 2, "plane": 2, "cone": 1, "torus": 1}
+    rec = face_recovery(result.labels, fx.labels[result.mesh.source_face], result.mesh.face_areas)
+    assert (rec.iou >= 0.5).all(), rec.iou
+    ours = [result.fits[int(p)].type for p in rec.best_part]
+    assert ours == [fx.true_faces[int(t)].type for t in rec.true_ids]
+
+
+def test_chamfered_box_under_heavy_noise_is_planes():
+    """box_chamfer at σ = 0.2 %: the chamfers are ~1.5 triangles wide, and a cylinder or cone covered a
+    chamfer with strips of both its planes within tolerance (30 faces, 45 % of the area of a true type).
+    Grown back over their borders and cut back to the planes inside them, the faces are planes again: the
+    issue's target of 90 % of the true area in faces of its type (all planes), and at most the truth's 26
+    faces + 15 %. (The 8 corner triangles, 4 mesh triangles each, are not recovered under this noise.)"""
+    from recon import convert
+    from recon.bench import type_agreement
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture("box_chamfer", "noisy20")
+    result = convert((fx.vertices, fx.faces), deviation=False)
+    assert result.brep.validity.ok, result.report["validity"]
+    assert result.report["n_faces"] <= 1.15 * len(fx.true_faces)
+    agreement = type_agreement(result.labels, fx.labels[result.mesh.source_face], result.mesh.face_areas,
+                               {p: f.type for p, f in result.fits.items()}, [f.type for f in fx.true_faces])
+    assert agreement >= 0.9

@@ -233,6 +233,23 @@ def test_selection_picks_the_true_type(kind, seed):
     assert fit.deviation["p99"] <= TOL
 
 
+@pytest.mark.parametrize("seed", [1, 2])
+def test_selection_prefers_the_type_that_leaves_only_the_noise(seed):
+    """revolved's cone (half-angle 37°, radius 14 to 20, all round) at σ = 0.132, the fixture's noise20: a
+    sphere holds the band within the tolerance 4σ (for these seeds: the premise is asserted), the cone leaves
+    only the noise. Given the noise, the cone is the answer, with its half-angle to the noise's precision."""
+    rng = np.random.default_rng(seed)
+    half = np.arctan(0.75)
+    pts, nrm = sample_cone(600, rng, half_angle=half, theta=(0, 2 * np.pi), height=(14 / 0.75, 20 / 0.75))
+    sigma = 0.132
+    pts = add_noise(pts, sigma, rng)
+    assert fit_sphere(pts, nrm, tolerance=4 * sigma)
+    assert fit_surface(pts, nrm, tolerance=4 * sigma).type == "sphere"  # the noise unknown: the first type
+    fit = fit_surface(pts, nrm, tolerance=4 * sigma, sigma=sigma)
+    assert fit.type == "cone"
+    assert fit.params["half_angle"] == pytest.approx(half, abs=np.deg2rad(0.5))
+
+
 def test_default_tolerance_from_noise_selects_types():
     rng = np.random.default_rng(12)
     _, pts, _, _, _ = _posed(sample_torus, rng, n=2000)

@@ -871,7 +871,8 @@ def fitted_regions(
 SPLIT_ANGLE_DEG = 30.0
 
 
-def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float, max_seeds: int | None = None) -> list:
+def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float, max_seeds: int | None = None,
+                     types=tuple(ANALYTIC_FITTERS)) -> list:
     """The analytic surfaces that cover ``faces``, as regions grown from seeds inside them.
 
     For a part no one surface fits: a ring of four fillets meeting at a pocket's sharp corners is one linear
@@ -892,6 +893,8 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
         Distance tolerance; least area a region must reach to count.
     max_seeds : int, optional
         Seed discs to try at most (the deepest first); default all.
+    types : sequence of str
+        The analytic types a seed may be fitted with (a region may still change type as it grows).
 
     Returns
     -------
@@ -924,5 +927,6 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
         nb = np.unique(nb[nb >= 0])
         ring = nb[depth[nb] < 0]
         d += 1
-    found = _seed_regions(ctx, np.ones(len(f), bool), -depth.astype(float), min_area, area, max_seeds=max_seeds)
+    found = _seed_regions(ctx, np.ones(len(f), bool), -depth.astype(float), min_area, area, max_seeds=max_seeds,
+                          types=types)
     return [(faces[r], fit) for r, fit in found]
