@@ -223,12 +223,10 @@ def test_sphere_one_smooth_part_becomes_a_solid():
     assert result.brep.validity.volume == pytest.approx(4 / 3 * np.pi * 1000.0, rel=1e-5)
 
 
-def test_a_face_that_took_in_a_sliver_is_cut_back_to_its_plane():
-    """A box face that took in the strip of its neighbour along their edge fits no plane (a B-spline, or
-    nothing); cut back to the plane grown inside it, the strip returns to the neighbour it lies on, and
-    every face is one plane of the box again."""
+def _box_with_strip_on_top():
+    """A 30 x 20 x 10 box labelled by its true faces, except the +x side's triangles within 1 mm of the top edge,
+    given to the top face. Returns the mesh, the true labels, those labels, and the top and side ids."""
     from recon.mesh import clean_mesh
-    from recon.pipeline import _fit_parts, trim_to_surface
 
     box = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
     mesh = clean_mesh(box.vertices, box.faces)
@@ -236,9 +234,17 @@ def test_a_face_that_took_in_a_sliver_is_cut_back_to_its_plane():
     truth = np.argmax(np.abs(n), axis=1) * 2 + (n[np.arange(len(n)), np.argmax(np.abs(n), axis=1)] > 0)
     labels = truth.copy()
     top, side = int(truth[np.argmax(n[:, 2])]), int(truth[np.argmax(n[:, 0])])
-    c = mesh.face_centroids
-    strip = (labels == side) & (c[:, 2] > 5.0 - 1.0)  # the side's triangles within 1 mm of the top edge
-    labels[strip] = top
+    labels[(labels == side) & (mesh.face_centroids[:, 2] > 5.0 - 1.0)] = top
+    return mesh, truth, labels, top, side
+
+
+def test_a_face_that_took_in_a_sliver_is_cut_back_to_its_plane():
+    """A box face that took in the strip of its neighbour along their edge fits no plane (a B-spline, or
+    nothing); cut back to the plane grown inside it, the strip returns to the neighbour it lies on, and
+    every face is one plane of the box again."""
+    from recon.pipeline import _fit_parts, trim_to_surface
+
+    mesh, truth, labels, top, side = _box_with_strip_on_top()
     tolerance = 1e-3
     fits = _fit_parts(mesh, labels, tolerance=tolerance)
     assert not (fits[top].ok and fits[top].type == "plane")
@@ -250,17 +256,9 @@ def test_a_strip_given_to_a_neighbour_returns_to_the_face_it_lies_on():
     """The same strip given to the top face: the top then fits no plane (a B-spline carries it), the side's
     plane holds every triangle of the strip (on it, normal along it), so growing the faces over their borders
     gives the strip back and every face is one plane of the box again."""
-    from recon.mesh import clean_mesh
     from recon.pipeline import _fit_parts, grow_faces
 
-    box = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
-    mesh = clean_mesh(box.vertices, box.faces)
-    n = mesh.face_normals
-    truth = np.argmax(np.abs(n), axis=1) * 2 + (n[np.arange(len(n)), np.argmax(np.abs(n), axis=1)] > 0)
-    labels = truth.copy()
-    top, side = int(truth[np.argmax(n[:, 2])]), int(truth[np.argmax(n[:, 0])])
-    strip = (labels == side) & (mesh.face_centroids[:, 2] > 5.0 - 1.0)
-    labels[strip] = top
+    mesh, truth, labels, top, side = _box_with_strip_on_top()
     tolerance = 1e-3
     fits = _fit_parts(mesh, labels, tolerance=tolerance)
     assert fits[top].type == "bspline" and fits[side].type == "plane"

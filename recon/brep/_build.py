@@ -468,14 +468,7 @@ def _own_curves_face(model: SurfaceModel, loops: list[np.ndarray], geo: NetworkG
                 builder.Add(wire, edge)
                 vtx = end
             wires.append(wire)
-        mk = BRepBuilderAPI_MakeFace(model.geom, wires[0], False)
-        if not mk.IsDone():
-            raise BrepError(f"BRepBuilderAPI_MakeFace failed ({mk.Error()})")
-        for w in wires[1:]:
-            mk.Add(w)
-        fix = ShapeFix_Face(mk.Face())
-        fix.SetPrecision(PRECISION_SHARE * precision)
-        fix.SetMaxTolerance(10.0 * precision)
+        fix = _face_fixer(model, wires, precision)
         fix.Perform()
         face = fix.Face()
         # ShapeFix drops a wire it cannot mend (rocker-arm: a cone left with only its hole). It may split edges
@@ -540,17 +533,7 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
     if vote < 0:
         loops = [-r[::-1] for r in loops]
     wires = [_wire(r, edges, context) for r in loops]
-    mk = BRepBuilderAPI_MakeFace(model.geom, wires[0], False)
-    if not mk.IsDone():
-        raise BrepError(f"BRepBuilderAPI_MakeFace failed ({mk.Error()})")
-    for w in wires[1:]:
-        mk.Add(w)
-    fix = ShapeFix_Face(mk.Face())
-    # Near the model's tolerance, not at OCC's 1e-7: a p-curve end that misses its neighbour's by less than the
-    # vertices' tolerance is not a gap to fill with a new edge (ShapeFix_Wire's FixLacking), an edge that the
-    # neighbouring face never sees (see PRECISION_SHARE).
-    fix.SetPrecision(PRECISION_SHARE * precision)
-    fix.SetMaxTolerance(10.0 * precision)
+    fix = _face_fixer(model, wires, precision)
     # ShapeFix may split a shared edge (a hole's circle at a cylinder's seam): the neighbouring faces must get
     # the same pieces. It records into a context of this face's own, handed on to the shared one only when
     # the face is accepted: a face that fails must not leave its neighbours with edges split for nothing.
@@ -571,6 +554,22 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
             raise BrepError(f"face on its surface is not valid ({problems})")
     _hand_on(local, before, context)
     return (TopoDS.Face_s(face.Reversed()) if vote < 0 else face), area
+
+
+def _face_fixer(model: SurfaceModel, wires, precision: float):
+    """``ShapeFix_Face`` (not yet performed) of the face on ``model``'s surface bounded by ``wires``."""
+    mk = BRepBuilderAPI_MakeFace(model.geom, wires[0], False)
+    if not mk.IsDone():
+        raise BrepError(f"BRepBuilderAPI_MakeFace failed ({mk.Error()})")
+    for w in wires[1:]:
+        mk.Add(w)
+    fix = ShapeFix_Face(mk.Face())
+    # Near the model's tolerance, not at OCC's 1e-7: a p-curve end that misses its neighbour's by less than the
+    # vertices' tolerance is not a gap to fill with a new edge (ShapeFix_Wire's FixLacking), an edge that the
+    # neighbouring face never sees (see PRECISION_SHARE).
+    fix.SetPrecision(PRECISION_SHARE * precision)
+    fix.SetMaxTolerance(10.0 * precision)
+    return fix
 
 
 def _subshapes(wires) -> list:
