@@ -986,7 +986,7 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                         warnings.append(f"{name}: no face ({msg})")
             elif status.startswith("filled"):
                 warnings.append(f"{name}: own face failed ({msg}); replaced by a filling B-spline")
-        elif near:
+        elif near and status == "poor":  # (a face on copies was named above, with `msg`)
             warnings.append(f"{name}: {msg}; kept its out-of-tolerance {model.kind} face")
         own = status in ("ok", "ok-sewn", "poor", "poor-sewn")
         surface_type = model.kind if own else "bspline" if face is not None else (
