@@ -223,6 +223,20 @@ def test_sphere_one_smooth_part_becomes_a_solid():
     assert result.brep.validity.volume == pytest.approx(4 / 3 * np.pi * 1000.0, rel=1e-5)
 
 
+def test_closed_torus_becomes_a_solid_of_torus_faces():
+    """A torus wraps around both ways: one smooth part with no boundary, cut on a seam loop into torus faces.
+    The vertices lie on the torus, so the volume is the torus's 2π² R r², not the polyhedron's."""
+    from recon import convert
+
+    R, r = 10.0, 3.0
+    mesh = trimesh.creation.torus(major_radius=R, minor_radius=r, major_sections=64, minor_sections=24)
+    result = convert((mesh.vertices, mesh.faces), deviation=False)
+    assert result.brep.validity.ok
+    assert set(result.report["faces_by_type"]) == {"torus"}
+    assert result.brep.validity.volume == pytest.approx(2 * np.pi**2 * R * r**2, rel=1e-5)
+    assert abs(mesh.volume / (2 * np.pi**2 * R * r**2) - 1) > 1e-3  # (the polyhedron's volume would fail)
+
+
 def _box_with_strip_on_top():
     """A 30 x 20 x 10 box labelled by its true faces, except the +x side's triangles within 1 mm of the top edge,
     given to the top face. Returns the mesh, the true labels, those labels, and the top and side ids."""
