@@ -80,7 +80,8 @@ class Conversion:
     Attributes
     ----------
     shape : build123d Solid, Shell or Compound
-        The B-rep: keep modelling on it in build123d, or ``cadquery.Shape.cast(shape.wrapped)``.
+        The B-rep: keep modelling on it in build123d, or ``cadquery.Shape.cast(shape.wrapped)``. Made on
+        first use (``brep.shape``): the command line writes the STEP without importing build123d.
     report : dict
         Plain-JSON figures: faces by type, deviation, validity, time per stage, per-face records.
     mesh : Mesh
@@ -91,7 +92,6 @@ class Conversion:
     brep : recon.brep.BrepResult
     """
 
-    shape: Any
     report: dict
     mesh: Mesh
     decomposition: Decomposition
@@ -99,6 +99,10 @@ class Conversion:
     fits: dict
     brep: Any
     extra: dict = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def shape(self):
+        return self.brep.shape
 
 
 def _faces_adjacency(mesh: Mesh) -> np.ndarray:
@@ -758,7 +762,7 @@ def convert(
         t = time.perf_counter()
         step("deviation", 0.0)
         try:
-            dev = measure(mesh.vertices, mesh.faces, brep.shape)
+            dev = measure(mesh.vertices, mesh.faces, brep.occ)
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
             dev_error = str(err)
@@ -768,7 +772,7 @@ def convert(
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance)
     if dev_error:
         report["warnings"].append(f"deviation not measured: {dev_error}")
-    return Conversion(brep.shape, report, mesh, dec, labels, fits, brep)
+    return Conversion(report, mesh, dec, labels, fits, brep)
 
 
 def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[np.ndarray, dict]:

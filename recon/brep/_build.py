@@ -11,6 +11,7 @@ points as constraints; a shell that still is not closed is sewn as a last resort
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import signal
@@ -141,7 +142,11 @@ class BrepResult:
 
     Attributes
     ----------
+    occ : TopoDS_Shape
+        The OCP shape: a solid, a shell, or a compound of them.
     shape : build123d Solid, Shell or Compound
+        ``occ`` wrapped for the user, made on first use (importing build123d takes about 2 s, more than
+        the whole B-rep stage of a 100k-triangle box; writing STEP, BREP or STL does not need it).
     faces : tuple of FaceRecord
         One per part that has a boundary, in ``network.parts`` order.
     validity : Validity
@@ -150,11 +155,17 @@ class BrepResult:
     warnings : tuple of str
     """
 
-    shape: object
+    occ: object
     faces: tuple
     validity: Validity
     geometry: NetworkGeometry
     warnings: tuple
+
+    @functools.cached_property
+    def shape(self):
+        from build123d import Compound, Shell, Solid
+
+        return {TopAbs_SOLID: Solid, TopAbs_SHELL: Shell}.get(self.occ.ShapeType(), Compound)(self.occ)
 
     @property
     def ok(self) -> bool:
@@ -865,8 +876,6 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         A build123d ``Solid`` when closed (a ``Compound`` of solids for several bodies), a ``Shell``
         with a warning for an open mesh. Per-face failures are records, not exceptions.
     """
-    from build123d import Compound, Shell, Solid  # build123d wraps the result for the user
-
     if not tolerance > 0:
         raise InputError(f"build_solid: `tolerance` must be > 0, got {tolerance!r}")
     if not isinstance(network, CurveNetwork):
@@ -1038,8 +1047,7 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     for w in warnings:
         log.warning("build_solid: %s", w)
 
-    wrapped = {TopAbs_SOLID: Solid, TopAbs_SHELL: Shell}.get(shape.ShapeType(), Compound)(shape)
-    return BrepResult(shape=wrapped, faces=tuple(records), validity=validity, geometry=geo,
+    return BrepResult(occ=shape, faces=tuple(records), validity=validity, geometry=geo,
                       warnings=tuple(warnings))
 
 

@@ -84,7 +84,7 @@ def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
     doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
     shape_tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     colour_tool = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
-    root = shape_tool.AddShape(_occ(result.shape), False)
+    root = shape_tool.AddShape(result.occ, False)
     TDataStd_Name.Set_s(root, TCollection_ExtendedString(name))
     for rec in result.faces:
         if rec.face is None:
@@ -134,7 +134,7 @@ def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "rec
         raise InputError(f"write_shape: `path` must end in one of {', '.join(_SUFFIXES)}, got {path.name!r}")
     if not isinstance(result, BrepResult):
         raise InputError(f"write_shape: `result` must be a BrepResult, got {type(result).__name__}")
-    occ = _occ(result.shape)
+    occ = result.occ
     with atomic_path(path) as tmp:
         if suffix in (".step", ".stp"):
             _write_step(tmp, result, name)

@@ -107,9 +107,9 @@ def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, wel
 def result_tessellation(result, *, deflection: float):
     """Tessellate a :class:`~recon.brep.BrepResult` for pictures: vertices, faces, face label per triangle, and
     the part kind (``"patch"``, ``"linear"``, ``"junction"``, ``"terminal"``) of every label."""
-    v, f, lab, _ = labelled_tessellation(result.shape, deflection=deflection)
+    v, f, lab, _ = labelled_tessellation(result.occ, deflection=deflection)
     kinds = []
-    exp = TopExp_Explorer(_wrapped(result.shape), TopAbs_FACE)
+    exp = TopExp_Explorer(result.occ, TopAbs_FACE)
     while exp.More():
         face = exp.Current()
         kinds.append(next((r.kind for r in result.faces if r.face is not None and r.face.IsSame(face)), "patch"))
