@@ -27,13 +27,13 @@ import numpy as np
 from scipy.optimize import least_squares
 
 try:  # the solver behind least_squares(method="trf") without bounds, called without its wrappers (see _solve)
-    from scipy.optimize._lsq.least_squares import construct_loss_function as _loss_function
     from scipy.optimize._lsq.trf import trf_no_bounds as _trf_no_bounds
 except ImportError:  # pragma: no cover - a scipy that moved its internals: the public function does the same
     _trf_no_bounds = None
 
 from ..errors import FitError
 from ._noise import estimate_normals
+from ._trf import trf_soft_l1
 from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, as_points, cone_distance, perpendicular_frame
 from ._types import SurfaceFit, deviation_stats, within_tolerance
 
@@ -116,10 +116,10 @@ def _solve(fun, jac, x0, q, f_scale):
     f0 = np.atleast_1d(fun(x0, q))
     if not np.all(np.isfinite(f0)):
         raise ValueError("Residuals are not finite in the initial point.")  # as least_squares
-    loss = _loss_function(len(f0), "soft_l1", f_scale)
-    return _trf_no_bounds(
+    # the same loop without scipy's Python around it (recon.fit._trf: same operations, same order)
+    return trf_soft_l1(
         lambda x: np.atleast_1d(fun(x, q)), lambda x: np.atleast_2d(jac(x, q)), x0, f0, np.atleast_2d(jac(x0, q)),
-        1e-8, 1e-8, 1e-8, _MAX_NFEV, "jac", loss, "exact", {}, 0,
+        f_scale, _MAX_NFEV,
     )
 
 
