@@ -219,26 +219,44 @@ def quick_fit(
     return fit if fit else None
 
 
+def _normal_constants(fit: SurfaceFit):
+    """The arrays :func:`surface_normals` builds from ``fit.params``, built once per fit (kept in its ``__dict__``,
+    as its cached ``surface`` is): region growing asks one surface for normals thousands of times."""
+    c = fit.__dict__.get("_normal_constants")
+    if c is None:
+        p = fit.params
+        if fit.type == "plane":
+            c = (np.asarray(p["normal"], float),)
+        elif fit.type == "sphere":
+            c = (np.asarray(p["center"]),)
+        elif fit.type in ("cylinder", "cone", "torus"):
+            d = np.asarray(p["axis_dir"], float)
+            d = d / np.linalg.norm(d)
+            origin = np.asarray(p["axis_point"] if fit.type == "cylinder" else p["apex"] if fit.type == "cone" else p["center"])
+            c = (d, origin)
+        else:
+            raise FitError(f"no analytic normals for a {fit.type!r} surface")
+        fit.__dict__["_normal_constants"] = c
+    return c
+
+
 def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:
     """(n, 3) unit normals of the fitted analytic surface at its points nearest ``pts`` (n, 3) (any sign)."""
-    p = fit.params
+    c = _normal_constants(fit)
     if fit.type == "plane":
-        return np.broadcast_to(np.asarray(p["normal"], float), pts.shape)
+        return np.broadcast_to(c[0], pts.shape)
     if fit.type == "sphere":
-        return _unit_rows(pts - np.asarray(p["center"]))
-    if fit.type in ("cylinder", "cone", "torus"):
-        d = np.asarray(p["axis_dir"], float)
-        d = d / np.sqrt(d.dot(d))
-        origin = np.asarray(p["axis_point"] if fit.type == "cylinder" else p["apex"] if fit.type == "cone" else p["center"])
-        w = pts - origin
-        h = w @ d
-        radial = w - h[:, None] * d
-        u = _unit_rows(radial)
-        if fit.type == "cylinder":
-            return u
-        if fit.type == "cone":
-            a = float(p["half_angle"])
-            return np.cos(a) * u - np.sin(a) * d
-        tube = origin + float(p["major_radius"]) * u
-        return _unit_rows(pts - tube)
-    raise FitError(f"no analytic normals for a {fit.type!r} surface")
+        return _unit_rows(pts - c[0])
+    d, origin = c
+    w = pts - origin
+    h = w @ d
+    radial = w - h[:, None] * d
+    u = _unit_rows(radial)
+    if fit.type == "cylinder":
+        return u
+    p = fit.params
+    if fit.type == "cone":
+        a = float(p["half_angle"])
+        return np.cos(a) * u - np.sin(a) * d
+    tube = origin + float(p["major_radius"]) * u
+    return _unit_rows(pts - tube)

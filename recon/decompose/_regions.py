@@ -198,7 +198,7 @@ def _region_normals(ctx: _Ctx, faces: np.ndarray, inv: np.ndarray, k: int, step:
         k = -(-k // step)
     else:
         corner_f = np.repeat(faces, 3)
-    wn = ctx.fa[corner_f, None] * ctx.fn[corner_f]
+    wn = ctx.wfn[corner_f]  # == ctx.fa[corner_f, None] * ctx.fn[corner_f]
     out = np.stack([np.bincount(inv, weights=wn[:, j], minlength=k) for j in range(3)], axis=1)
     out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
     # where the smoothed normal agrees (within the noise's angle) it is the better one: less noisy
@@ -343,10 +343,15 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
     pos = 0
     seeds = 0
     while pos < len(order):
-        seed = order[pos]
-        pos += 1
-        if tried[seed] or not free[seed]:
+        # the next seed not tried and still free, found a block of the order at a time (the masks change only
+        # when a seed is taken, so a block's test stays valid up to the first hit)
+        block = order[pos : pos + 512]
+        hit = np.flatnonzero(free[block] & ~tried[block])
+        if not len(hit):
+            pos += len(block)
             continue
+        seed = block[hit[0]]
+        pos += int(hit[0]) + 1
         if max_seeds is not None and seeds >= max_seeds:
             break
         seeds += 1
@@ -769,6 +774,7 @@ def fitted_regions(
     fn = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
     ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag)
     ctx.fa = area
+    ctx.wfn = area[:, None] * fn  # area-weighted normals (the products _region_normals sums)
     ctx.crease = SEED_CREASE_COS if 4.0 * noise < TOL_FLOOR * diag else -2.0
     label = np.full(m, -1, np.int64)
     fits: list = []
@@ -916,6 +922,7 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     ctx = _Ctx(v, f, adj, pairs, topo.edges, fn, vnormal[ids], tolerance, np.deg2rad(SPLIT_ANGLE_DEG), diag)
     ctx.fa = area
+    ctx.wfn = area[:, None] * fn
     ctx.crease = -2.0
     # depth: rings from the part's border inwards; the deepest triangles seed first
     depth = np.full(len(f), -1, np.int64)
