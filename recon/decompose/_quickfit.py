@@ -244,7 +244,10 @@ def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:
     """(n, 3) unit normals of the fitted analytic surface at its points nearest ``pts`` (n, 3) (any sign)."""
     c = _normal_constants(fit)
     if fit.type == "plane":
-        return np.broadcast_to(c[0], pts.shape)
+        # np.broadcast_to(normal, pts.shape): the same read-only stride-0 view, without its Python (~15 us)
+        out = np.ndarray(pts.shape, float, c[0], 0, (0, c[0].strides[0]))
+        out.flags.writeable = False
+        return out
     if fit.type == "sphere":
         return _unit_rows(pts - c[0])
     d, origin = c
