@@ -150,22 +150,32 @@ def heat_smooth(values: np.ndarray, L, mass: np.ndarray, scale: float, *, steps:
 
 
 def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
-    """Jacobi-preconditioned conjugate gradients on all columns at once (one sparse product per iteration)."""
+    """Jacobi-preconditioned conjugate gradients on all columns at once (one sparse product per iteration).
+
+    The updates run in place in buffers kept across iterations (the same operations on the same values as
+    ``X += alpha * P``, ``P = Z + beta * P``, ...: bit-identical), so an iteration allocates only the product.
+    """
     R = B - A @ X
-    Z = inv_diag[:, None] * R
+    dg = inv_diag[:, None]
+    Z = dg * R
     P = Z.copy()
+    tmp = np.empty_like(R)
     rz = np.einsum("ij,ij->j", R, Z)
     stop = rtol * np.maximum(np.linalg.norm(B, axis=0), 1e-300)
     for it in range(maxiter):
-        if (np.linalg.norm(R, axis=0) <= stop).all():
+        np.multiply(R, R, out=tmp)  # np.linalg.norm(R, axis=0): sqrt of the column sums of R * R
+        if (np.sqrt(np.add.reduce(tmp, axis=0)) <= stop).all():
             break
         AP = A @ P
         alpha = rz / np.maximum(np.einsum("ij,ij->j", P, AP), 1e-300)
-        X += alpha * P
-        R -= alpha * AP
-        Z = inv_diag[:, None] * R
+        np.multiply(alpha, P, out=tmp)
+        X += tmp
+        np.multiply(alpha, AP, out=AP)
+        R -= AP
+        np.multiply(dg, R, out=Z)
         rz_new = np.einsum("ij,ij->j", R, Z)
-        P = Z + (rz_new / np.maximum(rz, 1e-300)) * P
+        np.multiply(rz_new / np.maximum(rz, 1e-300), P, out=P)
+        np.add(Z, P, out=P)
         rz = rz_new
     else:
         log.debug("heat_smooth: CG reached %d iterations", maxiter)

@@ -480,3 +480,33 @@ def test_ruled_surface_is_exact_on_a_hyperbolic_paraboloid():
     s = np.random.default_rng(31).uniform(0, 1, (300, 1))
     inside = (1 - s) * left[np.arange(300) % 40] + s * right[::-1][np.arange(300) % 40]
     assert np.abs(fit.distance(inside)).max() < 1e-6
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("max_nfev", [3, 30])
+def test_lean_trust_region_loop_is_least_squares_bit_for_bit(seed, max_nfev):
+    """``recon.fit._trf.trf_soft_l1`` against ``least_squares`` itself on a noisy sphere with outliers, from a
+    poor start (several rejected steps), both run to convergence and cut short by the evaluation budget."""
+    from scipy.optimize import least_squares
+
+    from recon.fit._trf import trf_soft_l1
+
+    rng = np.random.default_rng(seed)
+    d = rng.normal(size=(300, 3))
+    q = 5.0 * d / np.linalg.norm(d, axis=1, keepdims=True) + rng.normal(scale=0.05, size=(300, 3))
+    q[:10] += rng.normal(scale=2.0, size=(10, 3))
+
+    def fun(x):
+        return np.linalg.norm(q - x[:3], axis=1) - x[3]
+
+    def jac(x):
+        diff = q - x[:3]
+        dist = np.linalg.norm(diff, axis=1, keepdims=True)
+        return np.column_stack([-diff / dist, -np.ones(len(q))])
+
+    x0 = np.array([1.0, -0.5, 0.3, 3.0])
+    ref = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=0.1, x_scale="jac", max_nfev=max_nfev)
+    got = trf_soft_l1(fun, jac, x0, fun(x0), jac(x0), 0.1, max_nfev)
+    assert got.nfev == ref.nfev and got.status == ref.status
+    assert got.x.tobytes() == ref.x.tobytes()
+    assert got.fun.tobytes() == ref.fun.tobytes()

@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
+from ..fit._surfaces import axis_helper, columns as _columns, cross3, row_norms
 from ..fit._types import deviation_stats, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
@@ -39,20 +40,20 @@ HUGE = 1e3
 
 
 def _unit_rows(v: np.ndarray) -> np.ndarray:
-    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
+    return v / np.maximum(row_norms(v, keepdims=True), 1e-300)
 
 
 def _frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    e1 = np.cross(d, np.eye(3)[int(np.argmin(np.abs(d)))])
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(d, e1)
+    e1 = cross3(d, axis_helper(d))  # np.cross(d, np.eye(3)[argmin |d|]), bit for bit
+    e1 /= np.sqrt(e1.dot(e1))
+    return e1, cross3(d, e1)
 
 
 def _circle(xy: np.ndarray):
     """Kåsa circle fit; (centre (2,), radius) or None."""
     m = xy.mean(axis=0)
     q = xy - m
-    a = np.c_[2 * q, np.ones(len(q))]
+    a = _columns(2 * q, np.ones(len(q)))
     sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
     r2 = sol[2] + sol[:2] @ sol[:2]
     if not np.isfinite(r2) or r2 <= 0:
@@ -64,8 +65,8 @@ def _sphere_gauss_newton(q, c, r, steps=GN_STEPS):
     """Gauss–Newton steps on the geometric residual |q − c| − r from the algebraic start."""
     for _ in range(steps):
         w = q - c
-        dist = np.maximum(np.linalg.norm(w, axis=1), 1e-300)
-        jac = np.c_[-w / dist[:, None], -np.ones(len(q))]
+        dist = np.maximum(row_norms(w), 1e-300)
+        jac = _columns(-w / dist[:, None], -np.ones(len(q)))
         step = np.linalg.lstsq(jac, -(dist - r), rcond=None)[0]
         c, r = c + step[:3], r + step[3]
     return c, abs(float(r))
@@ -81,13 +82,13 @@ def _cylinder_gauss_newton(q, c, d, r, steps=GN_STEPS):
         w = q - c
         h = w @ d
         radial = w - h[:, None] * d
-        rho = np.maximum(np.linalg.norm(radial, axis=1), 1e-300)
+        rho = np.maximum(row_norms(radial), 1e-300)
         u = radial / rho[:, None]
         k = -h / rho
-        jac = np.c_[k * (w @ e1), k * (w @ e2), -(u @ e1), -(u @ e2), -np.ones(len(q))]
+        jac = _columns(k * (w @ e1), k * (w @ e2), -(u @ e1), -(u @ e2), -np.ones(len(q)))
         step = np.linalg.lstsq(jac, -(rho - r), rcond=None)[0]
         d = d + step[0] * e1 + step[1] * e2
-        d /= np.linalg.norm(d)
+        d /= np.sqrt(d.dot(d))
         c = c + step[2] * e1 + step[3] * e2
         r = r + step[4]
     return c, d, abs(float(r))
@@ -112,7 +113,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         normal = np.linalg.eigh(q.T @ q)[1][:, 0]
         return {"origin": mean.tolist(), "normal": normal.tolist()}
     if kind == "sphere":
-        a = np.c_[2 * q, np.ones(len(q))]
+        a = _columns(2 * q, np.ones(len(q)))
         sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
         r2 = sol[3] + sol[:3] @ sol[:3]
         if not np.isfinite(r2) or r2 <= 0:
@@ -124,7 +125,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
     if kind == "cylinder":
         d = np.linalg.eigh(nrm.T @ nrm)[1][:, 0]
         e1, e2 = _frame(d)
-        c = _circle(np.c_[q @ e1, q @ e2])
+        c = _circle(_columns(q @ e1, q @ e2))
         if c is None or c[1] > HUGE * size or size * size / (8 * c[1]) < tol:
             return None
         centre, d, r = _cylinder_gauss_newton(q, c[0][0] * e1 + c[0][1] * e2, d, c[1])
@@ -157,7 +158,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         }
     if kind == "torus":
         s = np.sqrt(np.mean((q * q).sum(axis=1)))
-        a = np.c_[np.cross(q / s, nrm), nrm]
+        a = _columns(np.cross(q / s, nrm), nrm)
         vec = np.linalg.eigh(a.T @ a)[1][:, 0]
         d, mom = vec[:3], vec[3:]
         nd = np.linalg.norm(d)
@@ -165,11 +166,11 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
             return None
         d, mom = d / nd, mom / nd
         mom = mom - (mom @ d) * d
-        c0 = np.cross(d, mom) * s
+        c0 = cross3(d, mom) * s
         w = q - c0
         h = w @ d
         rho = np.sqrt(np.maximum((w * w).sum(axis=1) - h * h, 0.0))
-        c = _circle(np.c_[rho, h])
+        c = _circle(_columns(rho, h))
         if c is None:
             return None
         (big, z0), small = c
@@ -218,26 +219,47 @@ def quick_fit(
     return fit if fit else None
 
 
+def _normal_constants(fit: SurfaceFit):
+    """The arrays :func:`surface_normals` builds from ``fit.params``, built once per fit (kept in its ``__dict__``,
+    as its cached ``surface`` is): region growing asks one surface for normals thousands of times."""
+    c = fit.__dict__.get("_normal_constants")
+    if c is None:
+        p = fit.params
+        if fit.type == "plane":
+            c = (np.asarray(p["normal"], float),)
+        elif fit.type == "sphere":
+            c = (np.asarray(p["center"]),)
+        elif fit.type in ("cylinder", "cone", "torus"):
+            d = np.asarray(p["axis_dir"], float)
+            d = d / np.linalg.norm(d)
+            origin = np.asarray(p["axis_point"] if fit.type == "cylinder" else p["apex"] if fit.type == "cone" else p["center"])
+            c = (d, origin)
+        else:
+            raise FitError(f"no analytic normals for a {fit.type!r} surface")
+        fit.__dict__["_normal_constants"] = c
+    return c
+
+
 def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:
     """(n, 3) unit normals of the fitted analytic surface at its points nearest ``pts`` (n, 3) (any sign)."""
-    p = fit.params
+    c = _normal_constants(fit)
     if fit.type == "plane":
-        return np.broadcast_to(np.asarray(p["normal"], float), pts.shape)
+        # np.broadcast_to(normal, pts.shape): the same read-only stride-0 view, without its Python (~15 us)
+        out = np.ndarray(pts.shape, float, c[0], 0, (0, c[0].strides[0]))
+        out.flags.writeable = False
+        return out
     if fit.type == "sphere":
-        return _unit_rows(pts - np.asarray(p["center"]))
-    if fit.type in ("cylinder", "cone", "torus"):
-        d = np.asarray(p["axis_dir"], float)
-        d = d / np.linalg.norm(d)
-        origin = np.asarray(p["axis_point"] if fit.type == "cylinder" else p["apex"] if fit.type == "cone" else p["center"])
-        w = pts - origin
-        h = w @ d
-        radial = w - h[:, None] * d
-        u = _unit_rows(radial)
-        if fit.type == "cylinder":
-            return u
-        if fit.type == "cone":
-            a = float(p["half_angle"])
-            return np.cos(a) * u - np.sin(a) * d
-        tube = origin + float(p["major_radius"]) * u
-        return _unit_rows(pts - tube)
-    raise FitError(f"no analytic normals for a {fit.type!r} surface")
+        return _unit_rows(pts - c[0])
+    d, origin = c
+    w = pts - origin
+    h = w @ d
+    radial = w - h[:, None] * d
+    u = _unit_rows(radial)
+    if fit.type == "cylinder":
+        return u
+    p = fit.params
+    if fit.type == "cone":
+        a = float(p["half_angle"])
+        return np.cos(a) * u - np.sin(a) * d
+    tube = origin + float(p["major_radius"]) * u
+    return _unit_rows(pts - tube)

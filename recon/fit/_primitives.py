@@ -27,14 +27,14 @@ import numpy as np
 from scipy.optimize import least_squares
 
 try:  # the solver behind least_squares(method="trf") without bounds, called without its wrappers (see _solve)
-    from scipy.optimize._lsq.least_squares import construct_loss_function as _loss_function
     from scipy.optimize._lsq.trf import trf_no_bounds as _trf_no_bounds
 except ImportError:  # pragma: no cover - a scipy that moved its internals: the public function does the same
     _trf_no_bounds = None
 
 from ..errors import FitError
 from ._noise import estimate_normals
-from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, as_points, cone_distance, perpendicular_frame
+from ._trf import trf_soft_l1
+from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, as_points, cone_distance, columns as _columns, cross3, perpendicular_frame, row_norms
 from ._types import SurfaceFit, deviation_stats, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
@@ -64,7 +64,7 @@ def _prepare(points, normals, *, min_count: int, need_normals: bool):
         nrm = as_points(normals, "normals")
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
-        lengths = np.linalg.norm(nrm, axis=1, keepdims=True)
+        lengths = row_norms(nrm, keepdims=True)
         if np.any(lengths == 0):
             raise FitError("`normals` contains zero vectors")
         nrm = nrm / lengths
@@ -116,10 +116,10 @@ def _solve(fun, jac, x0, q, f_scale):
     f0 = np.atleast_1d(fun(x0, q))
     if not np.all(np.isfinite(f0)):
         raise ValueError("Residuals are not finite in the initial point.")  # as least_squares
-    loss = _loss_function(len(f0), "soft_l1", f_scale)
-    return _trf_no_bounds(
+    # the same loop without scipy's Python around it (recon.fit._trf: same operations, same order)
+    return trf_soft_l1(
         lambda x: np.atleast_1d(fun(x, q)), lambda x: np.atleast_2d(jac(x, q)), x0, f0, np.atleast_2d(jac(x0, q)),
-        1e-8, 1e-8, 1e-8, _MAX_NFEV, "jac", loss, "exact", {}, 0,
+        f_scale, _MAX_NFEV,
     )
 
 
@@ -158,13 +158,13 @@ def _failed(kind: str, n: int, reason: str) -> SurfaceFit:
 
 def _direction(d0, e1, e2, a, b):
     d = d0 + a * e1 + b * e2
-    return d / np.linalg.norm(d)
+    return d / np.sqrt(d.dot(d))  # np.linalg.norm(d)
 
 
 def _direction_jac(d0, e1, e2, a, b):
     """d and its derivatives ∂d/∂a, ∂d/∂b for d = normalize(d0 + a e1 + b e2)."""
     v = d0 + a * e1 + b * e2
-    nv = np.linalg.norm(v)
+    nv = np.sqrt(v.dot(v))  # np.linalg.norm(v)
     d = v / nv
     return d, (e1 - d * (d @ e1)) / nv, (e2 - d * (d @ e2)) / nv
 
@@ -173,7 +173,7 @@ def _radial(w: np.ndarray, d: np.ndarray):
     """Height h, distance ρ to the axis and the unit radial direction u of vectors w from an axis point."""
     h = w @ d
     radial = w - h[:, None] * d
-    rho = np.linalg.norm(radial, axis=1)
+    rho = row_norms(radial)
     u = radial / np.maximum(rho, 1e-300)[:, None]
     return h, rho, u
 
@@ -182,7 +182,7 @@ def _circle_2d(xy: np.ndarray) -> tuple[np.ndarray, float] | None:
     """Algebraic (Kåsa) circle fit: x² + y² = 2 c·x + k. Returns (centre, radius) or None if degenerate."""
     mean = xy.mean(axis=0)
     q = xy - mean
-    a = np.column_stack([2 * q, np.ones(len(q))])
+    a = _columns(2 * q, np.ones(len(q)))
     b = np.einsum("ij,ij->i", q, q)
     sol, *_ = np.linalg.lstsq(a, b, rcond=None)
     c, k = sol[:2], sol[2]
@@ -257,19 +257,19 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     size = _extent(sub)
     mean = sub.mean(axis=0)
     q = sub - mean
-    a = np.column_stack([2 * q, np.ones(len(q))])
+    a = _columns(2 * q, np.ones(len(q)))
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
     c0, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
     if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > _HUGE * size:
         return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
 
     def fun(x, q):
-        return np.linalg.norm(q - x[:3], axis=1) - x[3]
+        return row_norms(q - x[:3]) - x[3]
 
     def jac(x, q):
         diff = q - x[:3]
-        dist = np.linalg.norm(diff, axis=1, keepdims=True)
-        return np.column_stack([-diff / np.maximum(dist, 1e-300), -np.ones(len(q))])
+        dist = row_norms(diff, keepdims=True)
+        return _columns(-diff / np.maximum(dist, 1e-300), -np.ones(len(q)))
 
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
@@ -305,7 +305,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     _, vec = np.linalg.eigh(nrm.T @ nrm)
     d0 = vec[:, 0]
     e1, e2 = perpendicular_frame(d0)
-    circle = _circle_2d(np.column_stack([q @ e1, q @ e2]))
+    circle = _circle_2d(_columns(q @ e1, q @ e2))
     if circle is None or circle[1] > _HUGE * size:
         return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
     c0 = circle[0][0] * e1 + circle[0][1] * e2
@@ -321,7 +321,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
         w = q - (c0 + x[2] * e1 + x[3] * e2)
         h, rho, u = _radial(w, d)
         k = -h / np.maximum(rho, 1e-300)  # ∂ρ/∂d = -(h/ρ) w
-        return np.column_stack([k * (w @ da), k * (w @ db), -(u @ e1), -(u @ e2), -np.ones(len(q))])
+        return _columns(k * (w @ da), k * (w @ db), -(u @ e1), -(u @ e2), -np.ones(len(q)))
 
     x0 = np.array([0.0, 0.0, 0.0, 0.0, circle[1]])
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
@@ -380,9 +380,7 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
         sa, ca = np.sin(x[5]), np.cos(x[5])
         k = -(h * ca / np.maximum(rho, 1e-300) + sa)
         d_c = -ca * u + sa * d
-        return np.column_stack(
-            [k * (w @ da), k * (w @ db), d_c @ e1, d_c @ e2, np.full(len(q), -ca), -(rho - x[4]) * sa - h * ca]
-        )
+        return _columns(k * (w @ da), k * (w @ db), d_c @ e1, d_c @ e2, np.full(len(q), -ca), -(rho - x[4]) * sa - h * ca)
 
     x0 = np.array([0.0, 0.0, 0.0, 0.0, r0, alpha0])
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
@@ -443,7 +441,7 @@ def _cone_start(q: np.ndarray, nrm: np.ndarray, size: float):
         return apex + h * d, d, h * np.tan(alpha), alpha
     d = vec[:, 0]
     e1, e2 = perpendicular_frame(d)
-    circle = _circle_2d(np.column_stack([q @ e1, q @ e2]))
+    circle = _circle_2d(_columns(q @ e1, q @ e2))
     if circle is None:
         return None
     return circle[0][0] * e1 + circle[0][1] * e2, d, circle[1], 0.0
@@ -469,7 +467,7 @@ def _revolution_axis(q: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.nda
     """Least-squares line meeting all normal lines (q_i, n_i), in Plücker coordinates; (point, unit dir)."""
     s = np.sqrt(np.mean(np.einsum("ij,ij->i", q, q)))
     qs = q / s
-    a = np.column_stack([np.cross(qs, nrm), nrm])
+    a = _columns(np.cross(qs, nrm), nrm)
     _, vec = np.linalg.eigh(a.T @ a)
     d, mom = vec[:3, 0], vec[3:, 0]
     nd = np.linalg.norm(d)
@@ -477,7 +475,7 @@ def _revolution_axis(q: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.nda
         return None
     d, mom = d / nd, mom / nd
     mom -= (mom @ d) * d  # Plücker constraint d·m = 0
-    return np.cross(d, mom) * s, d
+    return cross3(d, mom) * s, d
 
 
 def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: float | None = None) -> SurfaceFit:
@@ -509,7 +507,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         return _failed("torus", len(pts), "degenerate start (normal lines meet no common line)")
     c0, d0 = axis
     h, rho = _rho_z(q, c0, d0)
-    circle = _circle_2d(np.column_stack([rho, h]))
+    circle = _circle_2d(_columns(rho, h))
     if circle is None or circle[1] > _HUGE * size:
         return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
     (r_major0, z0), r_minor0 = circle
@@ -528,7 +526,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         dist = np.maximum(np.hypot(rho - x[5], h), 1e-300)
         k = h * x[5] / (dist * np.maximum(rho, 1e-300))  # ∂r/∂d = w · hR/(Dρ)
         d_centre = -((rho - x[5]) / dist)[:, None] * u - (h / dist)[:, None] * d
-        return np.column_stack([k * (w @ da), k * (w @ db), d_centre, -(rho - x[5]) / dist, -np.ones(len(q))])
+        return _columns(k * (w @ da), k * (w @ db), d_centre, -(rho - x[5]) / dist, -np.ones(len(q)))
 
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, r_major0, r_minor0])
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)

@@ -30,13 +30,47 @@ def as_points(points, name: str = "points", *, min_count: int = 1) -> np.ndarray
     return a
 
 
+def cross3(a, b) -> np.ndarray:
+    """``np.cross(a, b)`` of two 3-vectors, bit for bit (numpy forms the same products and differences), without
+    its array machinery: the fitters' frames call it thousands of times."""
+    a0, a1, a2 = a.tolist() if isinstance(a, np.ndarray) else a
+    b0, b1, b2 = b.tolist() if isinstance(b, np.ndarray) else b
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def row_norms(x: np.ndarray, keepdims: bool = False) -> np.ndarray:
+    """``np.linalg.norm(x, axis=1, keepdims=keepdims)`` of a real (n, k) array, bit for bit (the same square,
+    row sum and root), without its dispatch."""
+    return np.sqrt(np.add.reduce(x * x, axis=1, keepdims=keepdims))
+
+
+def columns(*cols) -> np.ndarray:
+    """``np.column_stack(cols)`` (= ``np.c_[...]``) of 1-D columns (or (n, k) blocks): the same C-ordered matrix, filled in place."""
+    n = len(cols[0])
+    widths = [1 if np.ndim(c) == 1 else c.shape[1] for c in cols]
+    out = np.empty((n, sum(widths)))
+    j = 0
+    for c, w in zip(cols, widths):
+        if w == 1:
+            out[:, j] = c
+        else:
+            out[:, j : j + w] = c
+        j += w
+    return out
+
+
+def axis_helper(d: np.ndarray) -> tuple[float, float, float]:
+    """``np.eye(3)[np.argmin(np.abs(d))]`` as a tuple: the coordinate axis least aligned with ``d``."""
+    k = int(np.argmin(np.abs(d)))
+    return (1.0, 0.0, 0.0) if k == 0 else (0.0, 1.0, 0.0) if k == 1 else (0.0, 0.0, 1.0)
+
+
 def perpendicular_frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors (e1, e2) with (e1, e2, d) a right-handed orthonormal frame."""
-    d = d / np.linalg.norm(d)
-    helper = np.eye(3)[np.argmin(np.abs(d))]
-    e1 = np.cross(d, helper)
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(d, e1)
+    d = d / np.sqrt(d.dot(d))  # np.linalg.norm(d)
+    e1 = cross3(d, axis_helper(d))
+    e1 /= np.sqrt(e1.dot(e1))
+    return e1, cross3(d, e1)
 
 
 def _unit(v) -> np.ndarray:
@@ -73,7 +107,7 @@ class Sphere:
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance (n,), positive outside."""
-        return np.linalg.norm(np.asarray(points, dtype=float) - self.center, axis=1) - self.radius
+        return row_norms(np.asarray(points, dtype=float) - self.center) - self.radius
 
 
 @dataclass(frozen=True)
