@@ -223,8 +223,14 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     The decomposition can leave a face in two pieces (a sliver patch beside its face, a face cut by a
     short feature); two analytic neighbours whose union one analytic surface fits are one face. The pieces
     need not have the type of the whole: a small piece of a cone fits a plane or a cylinder within tolerance
-    (revolved noisy20's cone lay in cone, cylinder and plane pieces). Pairs are tried largest shared boundary
-    first; returns the new labels and fits.
+    (revolved noisy20's cone lay in cone, cylinder and plane pieces). A union that its surface holds only as a
+    compromise — a robust residual above :data:`recon.fit._select.MISFIT_SCALE` × the noise, as
+    :func:`grow_faces` judges a face — is two faces, not one: under noise a small piece that straddles two
+    faces fits some surface within tolerance, and its union with another such piece does too (box_chamfer
+    noisy20: a chamfer's plane piece and a cylinder across the chamfer and both its planes, σ̂ = 1.86 σ;
+    revolved noisy20: two pieces across the cone and the cylinder above it, 1.43 σ), and the grown faces then
+    keep that compromise. Pairs are tried largest shared boundary first; returns the new labels and the fits
+    left (a merged face's fit is gone: fewer fits than given means something merged).
     """
     labels = labels.copy()
     fits = dict(fits)
@@ -246,7 +252,7 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
             if fp.type != fq.type and not _probe_fits(mesh, np.flatnonzero(union == p), tolerance, upto):
                 continue
             fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p], upto=upto)[p]
-            if fit:
+            if fit and not _misfits(fit, mesh.vertices[np.unique(mesh.faces[union == p])]):
                 labels, fits[p] = union, fit
                 del fits[q]
                 merged = True
@@ -254,6 +260,17 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
         if not merged:
             break
     return labels, fits
+
+
+def _misfits(fit: SurfaceFit, pts: np.ndarray) -> bool:
+    """Whether ``fit`` is a compromise on the points ``pts``: their robust residual scale is above
+    :data:`recon.fit._select.MISFIT_SCALE` × the noise (never on a noise-free mesh, where the residuals are the
+    tessellation's)."""
+    from .fit._select import MISFIT_SCALE, _residual_scale
+
+    memo = _FIT_MEMO.get()
+    noise = memo.get("noise") if memo is not None else None
+    return noise is not None and _residual_scale(fit, pts) > MISFIT_SCALE * noise
 
 
 #: A closed form is a little off a noisy region's best fit: the probe lets it be this many tolerances off.
@@ -761,9 +778,9 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
     try:
         labels = face_labels(mesh, dec, tolerance=tolerance)
         fits = _fit_parts(mesh, labels, tolerance=tolerance)
-        merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
-        if merged.max() < labels.max():
-            log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
+        merged, left = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+        if len(left) < len(fits):  # (the labels are not renumbered: their max need not drop)
+            log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
             labels = _tidy(mesh, merged, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
         split = split_unfitted(mesh, labels, fits, tolerance=tolerance)
@@ -778,8 +795,9 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
             labels = _tidy(mesh, grown, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
             labels, fits = _trimmed(mesh, labels, fits, tolerance)
-            merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
-            if merged.max() < labels.max():
+            merged, left = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+            if len(left) < len(fits):
+                log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
                 labels = _tidy(mesh, merged, tolerance=tolerance)
                 fits = _fit_parts(mesh, labels, tolerance=tolerance)
         cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
