@@ -414,7 +414,7 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
     return out
 
 
-def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
+def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, dissolve: bool = False) -> np.ndarray:
     """Labels with boundary triangles moved to the neighbouring face whose analytic surface they lie on.
 
     The decomposition draws its parts' borders before any face is fitted whole, and under noise it draws them
@@ -437,6 +437,12 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
     whole or left with enough vertices for a surface (:data:`MIN_PART_VERTICES`), and a face that received
     triangles must still fit its own type within tolerance, or it gets none. Returns ``labels`` itself when
     nothing moved.
+
+    With ``dissolve``, only the faces every triangle of which lies on a neighbouring face's surface give
+    triangles away, whatever their own surface: such a face is pieces of its neighbours that a surface of its
+    own also holds within the noise (revolved noisy20: cone pieces with a rim of the cylinder below, whose own
+    cones fit them at 1.1-1.4 σ, which no merge can take in: their union with the cone or the cylinder fits
+    neither). They receive none.
     """
     from .decompose._quickfit import surface_normals
     from .fit._select import MISFIT_SCALE, _residual_scale
@@ -456,13 +462,17 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
         lies = (d <= tolerance) & (np.abs(np.einsum("ij,ij->i", n, mesh.face_normals[tris])) >= cos_min)
         return np.where(lies, d, np.inf)
 
+    explained = _explained_faces(labels, analytic, pairs, on) if dissolve else np.zeros(0, dtype=np.int64)
+    if dissolve and not len(explained):
+        return labels
+    receiving = np.setdiff1d(analytic, explained)
     out = labels.copy()
     for _ in range(len(labels)):
         a, b = out[pairs[:, 0]], out[pairs[:, 1]]
         cross = a != b
         tri = np.concatenate([pairs[cross, 0], pairs[cross, 1]])
         face = np.concatenate([b[cross], a[cross]])
-        keep = np.isin(face, analytic)
+        keep = np.isin(face, receiving)
         cand = np.unique(np.column_stack([tri[keep], face[keep]]), axis=0)
         if not len(cand):
             break
@@ -472,9 +482,11 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
             there[face == q] = on(q, tri[face == q])
         here = np.full(len(tri), np.inf)  # what a move must beat
         own = out[tri]
-        for p in np.intersect1d(own, analytic):
+        for p in np.intersect1d(own, receiving):
             d = on(p, tri[own == p])
             here[own == p] = d if misfits[p] else np.where(np.isfinite(d), -1.0, np.inf)
+        if dissolve:
+            here[~np.isin(own, explained)] = -np.inf  # only the explained faces give triangles away
         better = there < here
         if not better.any():
             break
@@ -501,9 +513,27 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
         out[undo] = labels[undo]
         if not (out != labels).any():
             return labels
-    log.info("%d triangles moved to the neighbouring face whose surface they lie on (%d faces refused them)",
-             int((out != labels).sum()), len(refused))
+    log.info("%d triangles moved to the neighbouring face whose surface they lie on (%d faces refused them)%s",
+             int((out != labels).sum()), len(refused),
+             f"; faces {explained.tolist()} lie on their neighbours' surfaces" if dissolve else "")
     return out
+
+
+def _explained_faces(labels: np.ndarray, analytic: np.ndarray, pairs: np.ndarray, on) -> np.ndarray:
+    """The faces among ``analytic`` every triangle of which lies (``on``) on a neighbouring analytic face's surface."""
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    cross = (a != b) & np.isin(a, analytic) & np.isin(b, analytic)
+    nbr = np.unique(np.column_stack([np.r_[a[cross], b[cross]], np.r_[b[cross], a[cross]]]), axis=0)
+    out = []
+    for p in analytic.tolist():
+        tris = np.flatnonzero(labels == p)
+        held = np.zeros(len(tris), dtype=bool)
+        for q in nbr[nbr[:, 0] == p, 1].tolist():
+            held[~held] = np.isfinite(on(q, tris[~held]))
+            if held.all():
+                out.append(p)
+                break
+    return np.asarray(out, dtype=np.int64)
 
 
 def _cut_unbounded(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> np.ndarray:
@@ -800,6 +830,10 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
                 log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
                 labels = _tidy(mesh, merged, tolerance=tolerance)
                 fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        dissolved = grow_faces(mesh, labels, fits, tolerance=tolerance, dissolve=True)
+        if dissolved is not labels:
+            labels = _tidy(mesh, dissolved, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
         cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
         if cut is not labels:
             labels = cut
