@@ -247,13 +247,14 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
             fp, fq = fits.get(p), fits.get(q)
             if not (fp and fq and fp.type in _ANALYTIC and fq.type in _ANALYTIC):
                 continue
-            union = np.where(labels == q, p, labels)
+            members = np.flatnonzero((labels == p) | (labels == q))
             upto = fp.type if fp.type == fq.type else _ANALYTIC[-1]
-            if fp.type != fq.type and not _probe_fits(mesh, np.flatnonzero(union == p), tolerance, upto):
+            if fp.type != fq.type and not _probe_fits(mesh, members, tolerance, upto):
                 continue
-            fit = _fit_parts(mesh, union, tolerance=tolerance, only=[p], upto=upto)[p]
-            if fit and not _misfits(fit, mesh.vertices[np.unique(mesh.faces[union == p])]):
-                labels, fits[p] = union, fit
+            fit = _fit_members(mesh, members, _memo_vertex_normals(mesh), tolerance, p, upto)
+            if fit and not _misfits(fit, mesh.vertices[np.unique(mesh.faces[members])]):
+                labels[labels == q] = p
+                fits[p] = fit
                 del fits[q]
                 merged = True
                 break
@@ -285,15 +286,20 @@ def _probe_fits(mesh: Mesh, tris: np.ndarray, tolerance: float, upto: str) -> bo
     faces of different types in full took the 100k box's fit stage from 0.5 to 4.7 s."""
     from .decompose._quickfit import quick_fit
 
-    ids = np.unique(mesh.faces[tris])
     memo = _FIT_MEMO.get()
-    vn = memo.get("vertex normals") if memo is not None else None
-    if vn is None:
-        vn = _vertex_normals(mesh.vertices, mesh.faces, mesh.face_normals, mesh.face_areas)
+    # merge_same_surface starts over after every merge and probes the same pairs again
+    key = ("probe", float(tolerance), upto, hashlib.sha1(np.asarray(tris, dtype=np.int64).tobytes()).digest())
+    if memo is not None and key in memo:
+        return memo[key]
+    ids = np.unique(mesh.faces[tris])
+    vn = _memo_vertex_normals(mesh)
     ids = ids[:: max(1, len(ids) // PROBE_POINTS)]  # a closed form needs no more points to be judged
     pts, nrm = mesh.vertices[ids], vn[ids]
     kinds = _ANALYTIC[: _ANALYTIC.index(upto) + 1]
-    return any(quick_fit(kind, pts, nrm, PROBE_SLACK * tolerance, refine=False) is not None for kind in kinds)
+    fits = any(quick_fit(kind, pts, nrm, PROBE_SLACK * tolerance, refine=False) is not None for kind in kinds)
+    if memo is not None:
+        memo[key] = fits
+    return fits
 
 
 def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: float, max_seeds=None,
@@ -314,11 +320,8 @@ def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: 
            hashlib.sha1(np.asarray(tris, dtype=np.int64).tobytes()).digest())
     if memo is not None and key in memo:
         return total, memo[key]
-    vn = memo.get("vertex normals") if memo is not None else None
-    if vn is None:
-        vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
-    found = split_by_fitting(V, F, tris, vnormal=vn, tolerance=tolerance, min_area=min_share * total,
-                             max_seeds=max_seeds, types=types)
+    found = split_by_fitting(V, F, tris, vnormal=_memo_vertex_normals(mesh), tolerance=tolerance,
+                             min_area=min_share * total, max_seeds=max_seeds, types=types)
     if memo is not None:
         memo[key] = found
     return total, found
@@ -467,9 +470,13 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
         return labels
     receiving = np.setdiff1d(analytic, explained)
     out = labels.copy()
+    # A candidate move depends on nothing but the labels of its two triangles, with the surfaces fixed: after
+    # the first ring, only pairs with a triangle that just moved can offer one (crank: the first round went
+    # from 40 s to ... with this, the same moves).
+    live = np.ones(len(pairs), dtype=bool)
     for _ in range(len(labels)):
         a, b = out[pairs[:, 0]], out[pairs[:, 1]]
-        cross = a != b
+        cross = (a != b) & live
         tri = np.concatenate([pairs[cross, 0], pairs[cross, 1]])
         face = np.concatenate([b[cross], a[cross]])
         keep = np.isin(face, receiving)
@@ -495,6 +502,9 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
         tri, face = tri[order], face[order]
         first = np.r_[True, tri[1:] != tri[:-1]]
         out[tri[first]] = face[first]
+        just = np.zeros(len(labels), dtype=bool)
+        just[tri[first]] = True
+        live = just[pairs[:, 0]] | just[pairs[:, 1]]
     moved = out != labels
     # a remnant too small for a surface would go to the face it touches most (`_tidy`), which need not hold it
     # (box_chamfer noisy20 without this: 15 faces for 26, where the chamfers' remnants went to the planes)
@@ -649,6 +659,17 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.nd
     return vn / np.where(n > 0, n, 1.0)[:, None]
 
 
+def _memo_vertex_normals(mesh: Mesh) -> np.ndarray:
+    """The mesh's vertex normals, made once per conversion (:data:`_FIT_MEMO`)."""
+    memo = _FIT_MEMO.get()
+    vn = memo.get("vertex normals") if memo is not None else None
+    if vn is None:
+        vn = _vertex_normals(mesh.vertices, mesh.faces, mesh.face_normals, mesh.face_areas)
+        if memo is not None:
+            memo["vertex normals"] = vn
+    return vn
+
+
 def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None, upto: str | None = None
                ) -> dict[int, SurfaceFit]:
     """One surface per label (or per label in ``only``), fitted to the label's vertices with their normals.
@@ -656,27 +677,24 @@ def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None, u
     ``upto``: try only the analytic types up to this one (in :func:`recon.fit.fit_surface`'s order) and no
     B-spline — the same answer whenever the full fit would give one of those types, at a fraction of the cost.
     """
-    V, F = mesh.vertices, mesh.faces
-    memo = _FIT_MEMO.get()
-    vn = memo.get("vertex normals") if memo is not None else None
-    if vn is None:
-        vn = _vertex_normals(V, F, mesh.face_normals, mesh.face_areas)
-        if memo is not None:
-            memo["vertex normals"] = vn
+    vn = _memo_vertex_normals(mesh)
+    if only is not None and len(only) * 8 < labels.max() + 1:  # a few faces: no sort of all the labels
+        return {p: _fit_members(mesh, np.flatnonzero(labels == p), vn, tolerance, p, upto) for p in only}
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
-    fits = {}
-    for p in range(labels.max() + 1) if only is None else only:
-        members = order[bounds[p] : bounds[p + 1]]
-        if memo is not None:
-            key = (float(tolerance), upto, hashlib.sha1(members.tobytes()).digest())
-            if key in memo:
-                fits[p] = memo[key]
-                continue
-        fits[p] = _fit_triangles(V, F[members], vn, tolerance, p, upto)
-        if memo is not None:
-            memo[key] = fits[p]
-    return fits
+    return {p: _fit_members(mesh, order[bounds[p] : bounds[p + 1]], vn, tolerance, p, upto)
+            for p in (range(labels.max() + 1) if only is None else only)}
+
+
+def _fit_members(mesh: Mesh, members: np.ndarray, vn, tolerance: float, p: int, upto: str | None) -> SurfaceFit:
+    """The surface of the triangles ``members`` (ascending ids), made once per conversion (:data:`_FIT_MEMO`)."""
+    memo = _FIT_MEMO.get()
+    if memo is None:
+        return _fit_triangles(mesh.vertices, mesh.faces[members], vn, tolerance, p, upto)
+    key = (float(tolerance), upto, hashlib.sha1(np.asarray(members, dtype=np.int64).tobytes()).digest())
+    if key not in memo:
+        memo[key] = _fit_triangles(mesh.vertices, mesh.faces[members], vn, tolerance, p, upto)
+    return memo[key]
 
 
 def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = None) -> SurfaceFit:

@@ -413,3 +413,28 @@ def test_a_vertex_merged_by_one_face_reaches_the_edges_of_the_next():
     now = TopoDS.Edge_s(shared.Apply(theirs))
     assert TopExp.FirstVertex_s(now).IsSame(merged)
     assert TopExp.LastVertex_s(TopoDS.Edge_s(shared.Apply(mine))).IsSame(merged)
+
+
+def test_orientation_conflicts_count_the_edges_of_a_face_turned_over():
+    """A closed shell uses every edge once each way; a face turned over runs all its edges with its neighbours."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Shell
+
+    from recon.brep._build import orientation_conflicts
+
+    def shell_of(faces):
+        builder, shell = BRep_Builder(), TopoDS_Shell()
+        builder.MakeShell(shell)
+        for f in faces:
+            builder.Add(shell, f)
+        return shell
+
+    box = Box(2, 3, 4)
+    faces = [f.wrapped for f in box.faces()]
+    assert orientation_conflicts(shell_of(faces)) == 0
+    assert orientation_conflicts(shell_of([faces[0].Reversed()] + faces[1:])) == 4  # a box face has 4 edges
+    # two opposite faces turned over share no edge: 8
+    opposite = next(i for i in range(1, 6) if not any(e.wrapped.IsSame(g.wrapped) for e in box.faces()[0].edges()
+                                                     for g in box.faces()[i].edges()))
+    turned = [f.Reversed() if i in (0, opposite) else f for i, f in enumerate(faces)]
+    assert orientation_conflicts(shell_of(turned)) == 8
