@@ -227,8 +227,14 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     The decomposition can leave a face in two pieces (a sliver patch beside its face, a face cut by a
     short feature); two analytic neighbours whose union one analytic surface fits are one face. The pieces
     need not have the type of the whole: a small piece of a cone fits a plane or a cylinder within tolerance
-    (revolved noisy20's cone lay in cone, cylinder and plane pieces). Pairs are tried largest shared boundary
-    first; returns the new labels and fits.
+    (revolved noisy20's cone lay in cone, cylinder and plane pieces). A union that its surface holds only as a
+    compromise — a robust residual above :data:`recon.fit._select.MISFIT_SCALE` × the noise, as
+    :func:`grow_faces` judges a face — is two faces, not one: under noise a small piece that straddles two
+    faces fits some surface within tolerance, and its union with another such piece does too (box_chamfer
+    noisy20: a chamfer's plane piece and a cylinder across the chamfer and both its planes, σ̂ = 1.86 σ;
+    revolved noisy20: two pieces across the cone and the cylinder above it, 1.43 σ), and the grown faces then
+    keep that compromise. Pairs are tried largest shared boundary first; returns the new labels and the fits
+    left (a merged face's fit is gone: fewer fits than given means something merged).
     """
     labels = labels.copy()
     fits = dict(fits)
@@ -250,7 +256,7 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
             if fp.type != fq.type and not _probe_fits(mesh, members, tolerance, upto):
                 continue
             fit = _fit_members(mesh, members, _memo_vertex_normals(mesh), tolerance, p, upto)
-            if fit:
+            if fit and not _misfits(fit, mesh.vertices[np.unique(mesh.faces[members])]):
                 labels[labels == q] = p
                 fits[p] = fit
                 del fits[q]
@@ -259,6 +265,17 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
         if not merged:
             break
     return labels, fits
+
+
+def _misfits(fit: SurfaceFit, pts: np.ndarray) -> bool:
+    """Whether ``fit`` is a compromise on the points ``pts``: their robust residual scale is above
+    :data:`recon.fit._select.MISFIT_SCALE` × the noise (never on a noise-free mesh, where the residuals are the
+    tessellation's)."""
+    from .fit._select import MISFIT_SCALE, _residual_scale
+
+    memo = _FIT_MEMO.get()
+    noise = memo.get("noise") if memo is not None else None
+    return noise is not None and _residual_scale(fit, pts) > MISFIT_SCALE * noise
 
 
 #: A closed form is a little off a noisy region's best fit: the probe lets it be this many tolerances off.
@@ -404,7 +421,7 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
     return out
 
 
-def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
+def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, dissolve: bool = False) -> np.ndarray:
     """Labels with boundary triangles moved to the neighbouring face whose analytic surface they lie on.
 
     The decomposition draws its parts' borders before any face is fitted whole, and under noise it draws them
@@ -427,6 +444,12 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
     whole or left with enough vertices for a surface (:data:`MIN_PART_VERTICES`), and a face that received
     triangles must still fit its own type within tolerance, or it gets none. Returns ``labels`` itself when
     nothing moved.
+
+    With ``dissolve``, only the faces every triangle of which lies on a neighbouring face's surface give
+    triangles away, whatever their own surface: such a face is pieces of its neighbours that a surface of its
+    own also holds within the noise (revolved noisy20: cone pieces with a rim of the cylinder below, whose own
+    cones fit them at 1.1-1.4 σ, which no merge can take in: their union with the cone or the cylinder fits
+    neither). They receive none.
     """
     from .decompose._quickfit import surface_normals
     from .fit._select import MISFIT_SCALE, _residual_scale
@@ -446,6 +469,10 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
         lies = (d <= tolerance) & (np.abs(np.einsum("ij,ij->i", n, mesh.face_normals[tris])) >= cos_min)
         return np.where(lies, d, np.inf)
 
+    explained = _explained_faces(labels, analytic, pairs, on) if dissolve else np.zeros(0, dtype=np.int64)
+    if dissolve and not len(explained):
+        return labels
+    receiving = np.setdiff1d(analytic, explained)
     out = labels.copy()
     # A candidate move depends on nothing but the labels of its two triangles, with the surfaces fixed: after
     # the first ring, only pairs with a triangle that just moved can offer one (crank: the first round went
@@ -456,7 +483,7 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
         cross = (a != b) & live
         tri = np.concatenate([pairs[cross, 0], pairs[cross, 1]])
         face = np.concatenate([b[cross], a[cross]])
-        keep = np.isin(face, analytic)
+        keep = np.isin(face, receiving)
         cand = np.unique(np.column_stack([tri[keep], face[keep]]), axis=0)
         if not len(cand):
             break
@@ -466,9 +493,11 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
             there[face == q] = on(q, tri[face == q])
         here = np.full(len(tri), np.inf)  # what a move must beat
         own = out[tri]
-        for p in np.intersect1d(own, analytic):
+        for p in np.intersect1d(own, receiving):
             d = on(p, tri[own == p])
             here[own == p] = d if misfits[p] else np.where(np.isfinite(d), -1.0, np.inf)
+        if dissolve:
+            here[~np.isin(own, explained)] = -np.inf  # only the explained faces give triangles away
         better = there < here
         if not better.any():
             break
@@ -498,9 +527,27 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) 
         out[undo] = labels[undo]
         if not (out != labels).any():
             return labels
-    log.info("%d triangles moved to the neighbouring face whose surface they lie on (%d faces refused them)",
-             int((out != labels).sum()), len(refused))
+    log.info("%d triangles moved to the neighbouring face whose surface they lie on (%d faces refused them)%s",
+             int((out != labels).sum()), len(refused),
+             f"; faces {explained.tolist()} lie on their neighbours' surfaces" if dissolve else "")
     return out
+
+
+def _explained_faces(labels: np.ndarray, analytic: np.ndarray, pairs: np.ndarray, on) -> np.ndarray:
+    """The faces among ``analytic`` every triangle of which lies (``on``) on a neighbouring analytic face's surface."""
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    cross = (a != b) & np.isin(a, analytic) & np.isin(b, analytic)
+    nbr = np.unique(np.column_stack([np.r_[a[cross], b[cross]], np.r_[b[cross], a[cross]]]), axis=0)
+    out = []
+    for p in analytic.tolist():
+        tris = np.flatnonzero(labels == p)
+        held = np.zeros(len(tris), dtype=bool)
+        for q in nbr[nbr[:, 0] == p, 1].tolist():
+            held[~held] = np.isfinite(on(q, tris[~held]))
+            if held.all():
+                out.append(p)
+                break
+    return np.asarray(out, dtype=np.int64)
 
 
 def _cut_unbounded(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> np.ndarray:
@@ -783,9 +830,9 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
     try:
         labels = face_labels(mesh, dec, tolerance=tolerance)
         fits = _fit_parts(mesh, labels, tolerance=tolerance)
-        merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
-        if merged.max() < labels.max():
-            log.info("%d faces merged with a neighbour on the same surface", labels.max() - merged.max())
+        merged, left = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+        if len(left) < len(fits):  # (the labels are not renumbered: their max need not drop)
+            log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
             labels = _tidy(mesh, merged, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
         split = split_unfitted(mesh, labels, fits, tolerance=tolerance)
@@ -800,10 +847,15 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
             labels = _tidy(mesh, grown, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
             labels, fits = _trimmed(mesh, labels, fits, tolerance)
-            merged, _ = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
-            if merged.max() < labels.max():
+            merged, left = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+            if len(left) < len(fits):
+                log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
                 labels = _tidy(mesh, merged, tolerance=tolerance)
                 fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        dissolved = grow_faces(mesh, labels, fits, tolerance=tolerance, dissolve=True)
+        if dissolved is not labels:
+            labels = _tidy(mesh, dissolved, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
         cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
         if cut is not labels:
             labels = cut
