@@ -552,19 +552,42 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
     fix.SetContext(local)
     # ShapeFix edits the wires in place: what they held before is what the shared context must map.
     before = _subshapes(wires)
-    fix.Perform()
-    face = TopoDS.Face_s(local.Apply(fix.Face()))
-    area = _area(face)
-    if not area > 0:
-        raise BrepError(f"face on its surface has area {area:.4g}")
-    flipped = TopoDS.Face_s(face.Reversed())
-    if not (BRepCheck_Analyzer(face).IsValid() and (not both_sides or BRepCheck_Analyzer(flipped).IsValid())):
-        _fix_edges(face)
-        problems = face_problems(face) or (face_problems(flipped) if both_sides else "")
-        if problems:
-            raise BrepError(f"face on its surface is not valid ({problems})")
+    tolerances = [_tolerance(s) for s in before]
+    try:
+        fix.Perform()
+        face = TopoDS.Face_s(local.Apply(fix.Face()))
+        area = _area(face)
+        if not area > 0:
+            raise BrepError(f"face on its surface has area {area:.4g}")
+        flipped = TopoDS.Face_s(face.Reversed())
+        if not (BRepCheck_Analyzer(face).IsValid() and (not both_sides or BRepCheck_Analyzer(flipped).IsValid())):
+            _fix_edges(face)
+            problems = face_problems(face) or (face_problems(flipped) if both_sides else "")
+            if problems:
+                raise BrepError(f"face on its surface is not valid ({problems})")
+    except Exception:
+        # ShapeFix and the edge repair raise the shared edges' and vertices' tolerances in place to fit this
+        # face: one that fails must not leave them raised (rocker-arm: a B-spline face that failed took two
+        # shared edges to 0.10 and 0.15, 60× the tolerance, and the filling bounded by them then failed too)
+        for shape, tol in zip(before, tolerances):
+            _set_tolerance(shape, tol)
+        raise
     _hand_on(local, before, context)
     return (TopoDS.Face_s(face.Reversed()) if vote < 0 else face), area
+
+
+def _tolerance(shape) -> float:
+    if shape.ShapeType() == TopAbs_VERTEX:
+        return BRep_Tool.Tolerance_s(TopoDS.Vertex_s(shape))
+    return BRep_Tool.Tolerance_s(TopoDS.Edge_s(shape))
+
+
+def _set_tolerance(shape, tol: float) -> None:
+    """Set the tolerance of one vertex or edge, down as well as up (BRep_Builder only raises it)."""
+    from OCP.ShapeFix import ShapeFix_ShapeTolerance
+
+    if _tolerance(shape) != tol:
+        ShapeFix_ShapeTolerance().SetTolerance(shape, tol, shape.ShapeType())
 
 
 def _face_fixer(model: SurfaceModel, wires, precision: float):
