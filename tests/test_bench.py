@@ -61,6 +61,10 @@ def test_run_writes_both_files_and_failures_become_rows(tmp_path):
     # the fixture's vertices were projected onto the true surfaces (stored as float32): mesh → true STEP ≈ 0
     assert good["true_m2s_max"] < 1e-3
     assert good["peak_mb"] > 0 and good["step_bytes"] > 0
+    # one fit record per face; a fit accepted as "ok" is within 2 tolerances at its max (the acceptance rule)
+    assert len(good["face_fits"]) >= good["faces_ours"] > 0
+    ok_fits = [f for f in good["face_fits"] if f[2] == "ok"]
+    assert ok_fits and all(f[5] <= 2.0 + 1e-9 and 0.0 <= f[4] <= f[3] for f in ok_fits)
 
     assert rows["mesh/bad"]["status"] == "error"
     assert rows["mesh/bad"]["error"].startswith("load:")
