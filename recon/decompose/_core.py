@@ -34,7 +34,7 @@ from ..features import FeatureField, feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
-from ._topology import Topology, topology
+from ._topology import Topology, topology, unique
 from ._types import Decomposition, Part, SurfaceSkeleton
 
 __all__ = ["decompose", "DEFAULT_THRESHOLD"]
@@ -164,7 +164,7 @@ def decompose(
         part_of_face, part_kind = _cut_parts(m, pairs, topo, critical, cut_keys, junction_faces, terminal_faces, chain_faces)
         part_of_face = _absorb_orphans(part_of_face, part_kind, pairs, topo, V, patch)
         # renumber critical parts after the patches, junctions first
-        crit_ids = np.unique(part_of_face[critical & (part_of_face >= 0)])
+        crit_ids = unique(part_of_face[critical & (part_of_face >= 0)])
         order = sorted(crit_ids, key=lambda c: (("junction", "linear", "terminal", "patch").index(part_kind[c]), c))
         remap = {int(c): n_patch + i for i, c in enumerate(order)}
         for c in order:
@@ -293,7 +293,9 @@ def _face_pairs(topo: Topology) -> np.ndarray:
 
 def _edge_graph(V, topo: Topology, critical, n) -> sp.csr_matrix:
     """Mesh edges of the critical triangles, weighted by length."""
-    e = np.unique(topo.half_edge[np.repeat(critical, 3)])
+    used = np.zeros(len(topo.edges), bool)  # np.unique of the critical half-edges' edges, by a mask
+    used[topo.half_edge[np.repeat(critical, 3)]] = True
+    e = np.flatnonzero(used)
     a, b = topo.edges[e, 0], topo.edges[e, 1]
     w = np.linalg.norm(V[a] - V[b], axis=1)
     w = np.maximum(w, 1e-12 * max(float(w.max(initial=0.0)), 1.0))
@@ -336,7 +338,7 @@ def _boundary_potentials(V, F, topo: Topology, patch):
     slot_next = {}  # for pinches: remaining outgoing half-edges per key
     dup = np.flatnonzero(np.diff(sorted_keys) == 0)
     if len(dup):
-        for d in np.unique(sorted_keys[dup]):
+        for d in unique(sorted_keys[dup]):
             lo, hi = np.searchsorted(sorted_keys, [d, d + 1])
             slot_next[int(d)] = list(order[lo:hi])
     for h0 in range(len(bnd)):
@@ -443,7 +445,7 @@ def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
     ncl = np.bincount(cl_of_bridge[cl_of_bridge >= 0], minlength=m)
     real = in_cluster & (ncl[cl] >= 3)
     bridge = (leave & (real[ea] | real[eb])) | term
-    junction_faces = [np.flatnonzero(real & (cl == c)) for c in np.unique(cl[real])]
+    junction_faces = [np.flatnonzero(real & (cl == c)) for c in unique(cl[real])]
     terminal_faces = np.flatnonzero(deg == 1)
     chain_faces = np.flatnonzero((deg >= 2) & ~real)
 
@@ -459,7 +461,7 @@ def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
             if path is not None and len(path) > 1:
                 a, b = np.minimum(path[:-1], path[1:]), np.maximum(path[:-1], path[1:])
                 cut.append(a * np.int64(len(V)) + b)
-    cut_keys = np.unique(np.concatenate(cut)) if cut else np.zeros(0, np.int64)
+    cut_keys = unique(np.concatenate(cut)) if cut else np.zeros(0, np.int64)
     return cut_keys, junction_faces, terminal_faces, chain_faces
 
 
@@ -501,13 +503,13 @@ def _cut_parts(m, pairs, topo, critical, cut_keys, junction_faces, terminal_face
     _, comp = cut_components(m, pairs[:, :2], cut, active=critical)
     kind: dict[int, str] = {}
     for faces_ in junction_faces:
-        for c in np.unique(comp[faces_]):
+        for c in unique(comp[faces_]):
             kind[int(c)] = "junction"
-    for c in np.unique(comp[chain_faces]):
+    for c in unique(comp[chain_faces]):
         kind.setdefault(int(c), "linear")
-    for c in np.unique(comp[terminal_faces]):
+    for c in unique(comp[terminal_faces]):
         kind.setdefault(int(c), "terminal")
-    for c in np.unique(comp[critical]):
+    for c in unique(comp[critical]):
         kind.setdefault(int(c), "orphan")
     return comp, kind
 

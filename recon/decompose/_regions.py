@@ -39,6 +39,7 @@ from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
 from ..fit._surfaces import row_norms
 from ._quickfit import quick_fit, surface_normals
+from ._topology import unique
 
 __all__ = ["Regions", "fitted_regions", "split_by_fitting"]
 
@@ -292,7 +293,7 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
     while len(frontier):
         nb = ctx.adj[frontier].ravel()
         nb = nb[nb >= 0]
-        nb = np.unique(nb[allowed[nb] & ~inreg[nb]])
+        nb = unique(nb[allowed[nb] & ~inreg[nb]])
         if len(nb):
             nb = nb[_accept(ctx, fit, nb)]
         inreg[nb] = True
@@ -311,7 +312,7 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
                 # of the later types are only made when there is something for them to accept
                 nb = ctx.adj[region].ravel()
                 nb = nb[nb >= 0]
-                nb = np.unique(nb[allowed[nb] & ~inreg[nb]])
+                nb = unique(nb[allowed[nb] & ~inreg[nb]])
                 if not len(nb) or not later:
                     break
                 if fi is None or len(fi.faces) != len(region):  # the region only grows: same size, same triangles
@@ -368,14 +369,14 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         # the seed disc: breadth-first rings over free triangles until it holds enough vertices
         core = np.array([seed])
         incore[seed] = True
-        while len(np.unique(ctx.F[core])) < SEED_VERTICES:
+        while len(unique(ctx.F[core])) < SEED_VERTICES:
             src = np.repeat(core, 3)
             nb = ctx.adj[core].ravel()
             ok = nb >= 0
             src, nb = src[ok], nb[ok]
             # not across a crease: on a coarse tessellation 16 vertices reach over a face's edges
             ok = free[nb] & ~incore[nb] & (np.einsum("ij,ij->i", ctx.fn[src], ctx.fn[nb]) >= ctx.crease)
-            nb = np.unique(nb[ok])
+            nb = unique(nb[ok])
             if not len(nb):
                 break
             incore[nb] = True
@@ -420,10 +421,10 @@ def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, stric
             creg = np.concatenate([lf[a], lg[b]])
         if not len(cand):
             break
-        key = np.unique(cand * np.int64(len(fits) + 1) + creg)
+        key = unique(cand * np.int64(len(fits) + 1) + creg)
         cand, creg = key // (len(fits) + 1), key % (len(fits) + 1)
         err = np.full(len(cand), np.inf)
-        for r in np.unique(creg):
+        for r in unique(creg):
             if fits[r].type == "free":
                 continue
             sel = creg == r
@@ -432,7 +433,7 @@ def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, stric
         if swap:
             own = np.full(len(cand), np.inf)
             cur = label[cand]
-            for r in np.unique(cur):
+            for r in unique(cur):
                 if fits[r].type == "free":
                     own[cur == r] = -np.inf  # free-form patches keep their triangles
                     continue
@@ -514,7 +515,7 @@ def _blends(ctx: _Ctx, label: np.ndarray, fits: list) -> np.ndarray:
     tangent = np.zeros((k, k), bool)
     lo, hi = np.minimum(lf, lg), np.maximum(lf, lg)
     key = lo * np.int64(k) + hi
-    for kk in np.unique(key):
+    for kk in unique(key):
         a, b = int(kk // k), int(kk % k)
         if fits[a].type == "free" or fits[b].type == "free":
             continue
@@ -582,11 +583,11 @@ def _islands(ctx: _Ctx, label, fits, prim, comp, area, tangent) -> dict:
     comp_area = np.bincount(comp[comp >= 0], weights=area[comp >= 0], minlength=len(label))
     reg_area = np.bincount(label[label >= 0], weights=area[label >= 0], minlength=len(fits))
     island = {}
-    for r in np.unique(preg):
+    for r in unique(preg):
         s = preg == r
         at = 0.5 * (ctx.V[ctx.edges[bedge[s], 0]] + ctx.V[ctx.edges[bedge[s], 1]])
         ang = _angles(surface_normals(fits[r], at), other[s])
-        cs = np.unique(comp[otri[s]])
+        cs = unique(comp[otri[s]])
         if np.median(ang) < TANGENT_DEG and reg_area[r] < ISLAND_SHARE * comp_area[cs].max():
             island[int(r)] = cs
     changed = True
@@ -607,7 +608,7 @@ def _topology_of(ctx: _Ctx, faces: np.ndarray, mesh_border: np.ndarray) -> tuple
     nv = len(ctx.V)
     # the unique rows as integer keys (the same lexicographic order): np.unique(axis=0) is ~10x slower
     uk, cnt = np.unique(ed[:, 0] * np.int64(nv) + ed[:, 1], return_counts=True)
-    chi = len(np.unique(tri)) - len(uk) + len(faces)
+    chi = len(unique(tri)) - len(uk) + len(faces)
     uk = uk[cnt == 1]
     be = np.stack([uk // nv, uk % nv], axis=1)
     if not len(be):
@@ -615,8 +616,8 @@ def _topology_of(ctx: _Ctx, faces: np.ndarray, mesh_border: np.ndarray) -> tuple
     _, loop = connected_components(sp.coo_matrix((np.ones(len(be)), (be[:, 0], be[:, 1])), shape=(nv, nv)),
                                    directed=False)
     loop_of = loop[be[:, 0]]
-    holes = np.unique(loop_of[np.isin(be[:, 0] * np.int64(nv) + be[:, 1], mesh_border)])
-    return chi, len(np.unique(loop_of)), len(holes)
+    holes = unique(loop_of[np.isin(be[:, 0] * np.int64(nv) + be[:, 1], mesh_border)])
+    return chi, len(unique(loop_of)), len(holes)
 
 
 def _crease_share(label, fits, inside, f, g, mid) -> float:
@@ -687,12 +688,12 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
     smooth_n /= np.maximum(np.linalg.norm(smooth_n, axis=1, keepdims=True), 1e-300)
     curved_region = np.array([ft.type != "plane" for ft in fits], bool)
     out = []
-    for c in np.unique(merged[merged >= 0]):
+    for c in unique(merged[merged >= 0]):
         faces = np.flatnonzero(merged == c)
         a = float(area[faces].sum())
         lab = label[faces]
         curved = (lab >= 0) & curved_region[np.maximum(lab, 0)]
-        tiles = len(np.unique(lab[curved]))
+        tiles = len(unique(lab[curved]))
         if a < min_area or tiles < MIN_TILES or area[faces[curved]].sum() < MIN_SPLIT_COVER * a:
             continue
         inside = merged == c
@@ -703,12 +704,12 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
         out_tri = np.where(inside[f[border]], g[border], f[border])
         in_tri = np.where(inside[f[border]], f[border], g[border])
         own = smooth_n[border]
-        for r in np.unique(label[in_tri]):
+        for r in unique(label[in_tri]):
             if r >= 0 and fits[r].type != "free":
                 sel = label[in_tri] == r
                 own[sel] = surface_normals(fits[r], mid[border[sel]])
         angles = {}
-        for r in np.unique(label[out_tri]):
+        for r in unique(label[out_tri]):
             if r < 0:  # cannot happen (unclaimed triangles are in some component); count it as tangent
                 angles[-1] = 0.0
                 continue
@@ -869,7 +870,7 @@ def fitted_regions(
             for q, tris in give.items():
                 label[tris] = q
         blend = np.r_[blend, np.zeros(len(free), bool)]
-        alive = np.unique(label[label >= 0])
+        alive = unique(label[label >= 0])
         lut = np.full(len(fits) + 1, -1, np.int64)
         lut[alive] = np.arange(len(alive))
         label = lut[label]
@@ -941,7 +942,7 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
     while len(ring):
         depth[ring] = d
         nb = adj[ring].ravel()
-        nb = np.unique(nb[nb >= 0])
+        nb = unique(nb[nb >= 0])
         ring = nb[depth[nb] < 0]
         d += 1
     found = _seed_regions(ctx, np.ones(len(f), bool), -depth.astype(float), min_area, area, max_seeds=max_seeds,
