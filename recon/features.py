@@ -96,7 +96,28 @@ def mesh_arrays(mesh) -> tuple[np.ndarray, np.ndarray]:
     return vertices, faces
 
 
-def _laplacian(vertices, faces):
+class FaceGeometry:
+    """Per-face arrays that several steps of the feature field and the decomposition need, formed once:
+    ``cross`` (m, 3) = (v1 − v0) × (v2 − v0), its length ``norm`` (m,) (twice the area) and the unit normal
+    ``unit`` (m, 3) (``cross / max(norm, 1e-300)``). The same operations as each step made on its own."""
+
+    def __init__(self, vertices, faces):
+        self.cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+        self.norm = np.linalg.norm(self.cross, axis=1)
+        self._unit = None
+
+    @property
+    def area(self) -> np.ndarray:
+        return 0.5 * self.norm
+
+    @property
+    def unit(self) -> np.ndarray:
+        if self._unit is None:
+            self._unit = self.cross / np.maximum(self.norm[:, None], 1e-300)
+        return self._unit
+
+
+def _laplacian(vertices, faces, geom: FaceGeometry | None = None):
     """Clipped cotangent Laplacian L (n, n) and lumped mass diagonal (n,)."""
     n = len(vertices)
     p = vertices[faces]  # (m, 3, 3)
@@ -104,7 +125,8 @@ def _laplacian(vertices, faces):
     for k in range(3):
         a = p[:, (k + 1) % 3] - p[:, k]
         b = p[:, (k + 2) % 3] - p[:, k]
-        cross = np.linalg.norm(np.cross(a, b), axis=1)
+        # k = 0: (v1 − v0) × (v2 − v0), the face's own cross product
+        cross = geom.norm if k == 0 and geom is not None else np.linalg.norm(np.cross(a, b), axis=1)
         cots.append(np.einsum("ij,ij->i", a, b) / np.maximum(cross, 1e-300))
     cot = np.clip(np.stack(cots, axis=1), 0.0, 10.0)  # angle at vertex k weighs the opposite edge
     i = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
@@ -112,7 +134,7 @@ def _laplacian(vertices, faces):
     w = 0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
     W = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)).tocsr()
     L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
-    area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    area = geom.area if geom is not None else 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
     mass = np.bincount(faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=n)
     # isolated or degenerate vertices keep their value instead of making the system singular
     mass = np.maximum(mass, max(float(area.mean()), 1e-300) * 1e-9)
@@ -138,12 +160,23 @@ def heat_smooth(values: np.ndarray, L, mass: np.ndarray, scale: float, *, steps:
     -------
     (n,) or (n, k) float
     """
+    return _smooth(values, mass, _system(L, mass, scale, steps), steps, rtol)
+
+
+def _system(L, mass, scale, steps):
+    """The implicit step's matrix ``M + dt L`` (CSR) and its inverse diagonal."""
+    dt = 0.5 * scale**2 / steps
+    A = (sp.diags(mass) + dt * L).tocsr()
+    return A, 1.0 / A.diagonal()
+
+
+def _smooth(values, mass, system, steps: int = 3, rtol: float = 1e-4):
+    """:func:`heat_smooth` with its :func:`_system` formed by the caller (the feature field smooths twice at one
+    scale: one matrix for both)."""
     x = np.asarray(values, dtype=np.float64)
     one = x.ndim == 1
     x = x.reshape(len(x), -1).copy()
-    dt = 0.5 * scale**2 / steps
-    A = (sp.diags(mass) + dt * L).tocsr()
-    inv_diag = 1.0 / A.diagonal()
+    A, inv_diag = system
     for _ in range(steps):
         x = _block_pcg(A, mass[:, None] * x, x, inv_diag, rtol)
     return x[:, 0] if one else x
@@ -182,8 +215,9 @@ def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
     return X
 
 
-def _vertex_normals(vertices, faces):
-    fn = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+def _vertex_normals(vertices, faces, geom: FaceGeometry | None = None):
+    fn = geom.cross if geom is not None else np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]],
+                                                      vertices[faces[:, 2]] - vertices[faces[:, 0]])
     # area-weighted (the cross product's length is twice the area). bincount adds in input order, corner 0 of
     # every face, then 1, then 2: the same sums as np.add.at once per corner, at a tenth of the cost
     idx = faces.T.ravel()
@@ -194,7 +228,8 @@ def _unit(v):
     return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
 
 
-def estimate_noise(vertices, faces, L, mass, mean_edge: float) -> float:
+def estimate_noise(vertices, faces, L, mass, mean_edge: float, *, vertex_normals=None, geom: FaceGeometry | None = None,
+                   hinge_pairs=None) -> float:
     """Robust estimate of the vertex noise standard deviation normal to the surface.
 
     The smaller of two estimates, each blind to something the other sees:
@@ -206,9 +241,13 @@ def estimate_noise(vertices, faces, L, mass, mean_edge: float) -> float:
       and curvature (a quarter of the edges or more) do not count.
     - *offset*: each vertex's offset from a lightly smoothed surface (one edge length) along the smoothed
       normal, lower quartile. It needs no manifold edge pairing, but sees the curvature and the faceting.
+
+    ``vertex_normals`` (:func:`_vertex_normals`), ``geom`` and ``hinge_pairs`` (see :func:`_hinge_noise`), when the
+    caller has them.
     """
     s = 1.0 * mean_edge
-    both = heat_smooth(np.hstack([vertices - vertices.mean(axis=0), _vertex_normals(vertices, faces)]), L, mass, s)
+    vn = _vertex_normals(vertices, faces, geom) if vertex_normals is None else vertex_normals
+    both = heat_smooth(np.hstack([vertices - vertices.mean(axis=0), vn]), L, mass, s)
     smooth_x = both[:, :3] + vertices.mean(axis=0)
     nrm = _unit(both[:, 3:])
     d = np.einsum("ij,ij->i", vertices - smooth_x, nrm)
@@ -217,17 +256,21 @@ def estimate_noise(vertices, faces, L, mass, mean_edge: float) -> float:
     # noise of the neighbours the smoothing averaged: on noisy planes with a known sigma the estimate
     # came out 0.75-0.85x sigma at this window, hence the 1.2.
     offset = float(1.2 * np.percentile(np.abs(d - np.median(d)), 25) / 0.3186)
-    hinge = _hinge_noise(vertices, faces)
+    hinge = _hinge_noise(vertices, faces, geom, hinge_pairs)
     return min(offset, hinge) if hinge is not None else offset
 
 
-def _hinge_noise(vertices, faces) -> float | None:
-    """Noise from the out-of-plane height of each triangle's neighbour across an edge (see :func:`estimate_noise`)."""
-    he = np.stack([faces, np.roll(faces, -1, axis=1)], axis=2).reshape(-1, 2)  # half-edge k of face f: 3 f + k
-    opp = np.roll(faces, 1, axis=1).ravel()  # the vertex opposite half-edge k
-    lo, hi = he.min(axis=1), he.max(axis=1)
-    key = lo * np.int64(len(vertices)) + hi
-    order = np.argsort(key, kind="stable")
+def hinge_pairs(faces, n_vertices: int, order=None) -> tuple[np.ndarray, np.ndarray]:
+    """The two half-edges (``3 f + k`` runs from ``faces[f, k]`` to ``faces[f, (k + 1) % 3]``) of every edge with
+    exactly two triangles, the smaller index first, in the order of the edges' keys ``lo · n + hi``.
+
+    ``order``: the stable argsort of those keys, when the caller has it (:func:`recon.decompose._topology.topology`).
+    """
+    start = faces.ravel()
+    end = np.roll(faces, -1, axis=1).ravel()
+    key = np.minimum(start, end) * np.int64(n_vertices) + np.maximum(start, end)
+    if order is None:
+        order = np.argsort(key, kind="stable")
     ks = key[order]
     pair = np.flatnonzero(ks[1:] == ks[:-1])
     # only edges with exactly two triangles (a non-manifold fan would pair arbitrary triangles)
@@ -235,13 +278,22 @@ def _hinge_noise(vertices, faces) -> float | None:
     single &= (pair + 2 >= len(ks)) | (ks[np.minimum(pair + 2, len(ks) - 1)] != ks[pair])
     single &= (pair == 0) | (ks[np.maximum(pair - 1, 0)] != ks[pair])
     pair = pair[single]
-    if len(pair) < 8:
+    return order[pair], order[pair + 1]
+
+
+def _hinge_noise(vertices, faces, geom: FaceGeometry | None = None, pairs=None) -> float | None:
+    """Noise from the out-of-plane height of each triangle's neighbour across an edge (see :func:`estimate_noise`).
+
+    ``pairs``: :func:`hinge_pairs` of the mesh, when the caller has them."""
+    h1, h2 = hinge_pairs(faces, len(vertices)) if pairs is None else pairs
+    if len(h1) < 8:
         return None
-    h1, h2 = order[pair], order[pair + 1]
-    cr = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-    fn = _unit(cr)
+    start = faces.ravel()
+    opp = np.roll(faces, 1, axis=1).ravel()  # the vertex opposite half-edge k
+    fn = geom.unit if geom is not None else _unit(
+        np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]]))
     f1 = h1 // 3
-    h = np.abs(np.einsum("ij,ij->i", vertices[opp[h2]] - vertices[he[h1, 0]], fn[f1]))
+    h = np.abs(np.einsum("ij,ij->i", vertices[opp[h2]] - vertices[start[h1]], fn[f1]))
     return float(np.percentile(h, 25) / 0.3186 / 2.0)
 
 
@@ -261,19 +313,29 @@ def feature_field(mesh, *, scale: float | None = None, noise: float | None = Non
     FeatureField
     """
     vertices, faces = mesh_arrays(mesh)
+    return _feature_field(vertices, faces, scale=scale, noise=noise)
+
+
+def _feature_field(vertices, faces, *, scale=None, noise=None, geom: FaceGeometry | None = None, pairs=None) -> FeatureField:
+    """:func:`feature_field` of validated arrays; ``geom`` (:class:`FaceGeometry`) and ``pairs``
+    (:func:`hinge_pairs`) when the caller has them (the decomposition forms them once for all its steps)."""
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise MeshError(f"`scale` must be a positive number, got {scale!r}")
     e = vertices[np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])]
     mean_edge = float(np.linalg.norm(e[:, 0] - e[:, 1], axis=1).mean())
     if not mean_edge > 0:
         raise MeshError("`mesh` has only zero-length edges")
-    L, mass = _laplacian(vertices, faces)
+    if geom is None:
+        geom = FaceGeometry(vertices, faces)
+    L, mass = _laplacian(vertices, faces, geom)
+    vn = _vertex_normals(vertices, faces, geom)  # the noise estimate's and the field's (the same sums)
     if noise is None:
-        noise = estimate_noise(vertices, faces, L, mass, mean_edge)
+        noise = estimate_noise(vertices, faces, L, mass, mean_edge, vertex_normals=vn, geom=geom, hinge_pairs=pairs)
     if scale is None:
         scale = max(EDGE_FACTOR * mean_edge, NOISE_FACTOR * noise)
-    n1 = _unit(heat_smooth(_vertex_normals(vertices, faces), L, mass, scale))
-    mean = heat_smooth(n1, L, mass, scale)
+    system = _system(L, mass, scale, 3)  # heat_smooth's default steps
+    n1 = _unit(_smooth(vn, mass, system))
+    mean = _smooth(n1, mass, system)
     measure = np.clip(1.0 - np.einsum("ij,ij->i", mean, mean), 0.0, 1.0)
     log.info("feature field: %d vertices, mean edge %.4g, noise %.4g, scale %.4g", len(vertices), mean_edge, noise, scale)
     return FeatureField(measure=measure, normals=n1, scale=float(scale), noise=float(noise), mean_edge=mean_edge)

@@ -30,7 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from ..errors import DecompositionError, InputError
-from ..features import FeatureField, feature_field, mesh_arrays
+from ..features import FaceGeometry, FeatureField, _feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
@@ -103,10 +103,11 @@ def decompose(
         raise InputError(f"`omega_min` must be a non-negative length, got {omega_min!r}")
 
     step("features", 0.0)
-    ff = features if features is not None else feature_field((V, F), scale=scale)
-    s = ff.scale
     topo = topology(F, n)
-    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1)
+    geom = FaceGeometry(V, F)  # the face cross products, areas and normals every step uses, formed once
+    ff = features if features is not None else _feature_field(V, F, scale=scale, geom=geom, pairs=topo.twin_pairs)
+    s = ff.scale
+    area = geom.area
 
     # -- 1. smooth patches ------------------------------------------------------------------------------
     step("patches", 0.2)
@@ -118,7 +119,7 @@ def decompose(
     regions = fitted_regions(
         V, F, adj=np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(m, 3), pairs=pairs, edges=topo.edges,
         smooth=smooth, priority=fmeasure, vnormal=ff.normals, area=area, tolerance=tolerance, noise=ff.noise,
-        angle=_normal_angle(V, F, ff, smooth), min_area=min_area, diag=diag,
+        angle=_normal_angle(V, F, ff, smooth, geom.unit), min_area=min_area, diag=diag, fnormal=geom.unit,
     )
     patch = _patch_ids(regions, area)
     n_patch = int(patch.max()) + 1 if (patch >= 0).any() else 0
@@ -130,6 +131,7 @@ def decompose(
     sharp: list[bool] = [False] * n_patch
     sk = SurfaceSkeleton(np.zeros((0, 3)), np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
     w_min = 0.0 if omega_min is None else float(omega_min)
+    bc = None
 
     if critical.any():
         # -- 2. boundary curves and potentials ------------------------------------------------------------
@@ -177,10 +179,11 @@ def decompose(
         for k, v in remap.items():
             lut[k] = v
         labels[sel] = lut[part_of_face[sel]]
-        mid = _middle_share(V, F, labels, area, len(kinds))
+        mid = _middle_share(V, F, labels, area, len(kinds), geom.unit)
         sharp = [False] * n_patch + [bool(kinds[i] == "linear" and mid[i] < SHARP_MIDDLE_SHARE) for i in range(n_patch, len(kinds))]
         # a junction is sharp (a corner vertex) when every linear part meeting it is sharp
-        _, nb = boundary_curves(V, topo, labels, len(kinds))
+        bc = boundary_curves(V, topo, labels, len(kinds))  # the labels are final: the same curves as below
+        nb = bc[1]
         for i in range(n_patch, len(kinds)):
             if kinds[i] == "junction":
                 lin = [j for j in nb[i] if kinds[j] == "linear"]
@@ -191,7 +194,7 @@ def decompose(
         raise DecompositionError(f"{int((labels < 0).sum())} triangles were left without a part")
 
     step("curves", 0.9)
-    curves, neighbours = boundary_curves(V, topo, labels, len(kinds))
+    curves, neighbours = bc if bc is not None else boundary_curves(V, topo, labels, len(kinds))
     counts = np.bincount(labels, minlength=len(kinds))
     part_area = np.bincount(labels, weights=area, minlength=len(kinds))
     parts = tuple(
@@ -231,10 +234,12 @@ def default_min_area(diagonal: float, scale: float) -> float:
     return max((MIN_PATCH_DIAGONAL * diagonal) ** 2, scale * scale)
 
 
-def _normal_angle(V, F, ff: FeatureField, smooth) -> float:
-    """Normal tolerance (radians): 3 × the median angle between smooth triangles' normals and the smoothed ones."""
-    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    fn = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
+def _normal_angle(V, F, ff: FeatureField, smooth, fn=None) -> float:
+    """Normal tolerance (radians): 3 × the median angle between smooth triangles' normals and the smoothed ones.
+
+    ``fn``: the unit face normals (:class:`recon.features.FaceGeometry`), when the caller has them."""
+    if fn is None:
+        fn = FaceGeometry(V, F).unit
     sn = ff.normals[F].sum(axis=1)
     sn /= np.maximum(np.linalg.norm(sn, axis=1, keepdims=True), 1e-300)
     cos = np.clip(np.abs(np.einsum("ij,ij->i", fn, sn)), 0.0, 1.0)
@@ -558,14 +563,15 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     return comp
 
 
-def _middle_share(V, F, labels, area, n_parts):
+def _middle_share(V, F, labels, area, n_parts, nrm=None):
     """Per part: share of area whose raw normal lies in the middle half of the part's normal range.
 
     The normals are projected on their main direction of spread (largest eigenvector of their
-    covariance); the range is the 5–95 % area quantiles of that projection.
+    covariance); the range is the 5–95 % area quantiles of that projection. ``nrm``: the unit face normals, when
+    the caller has them.
     """
-    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    nrm = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)
+    if nrm is None:
+        nrm = FaceGeometry(V, F).unit
     out = np.full(n_parts, 0.5)
     order = np.argsort(labels, kind="stable")
     bounds = np.searchsorted(labels[order], np.arange(n_parts + 1))

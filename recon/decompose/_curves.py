@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._topology import Topology
+from ._topology import Topology, unique
 from ._types import BoundaryCurves
 
 __all__ = ["boundary_curves"]
@@ -30,8 +30,9 @@ def boundary_curves(V, topo: Topology, labels, n_parts: int):
     pa, pb = np.minimum(la, lb), np.maximum(la, lb)
     neighbours = [[] for _ in range(n_parts)]
     if len(h):
-        pairs = np.unique(np.stack([pa, pb], axis=1), axis=0)
-        for a, b in pairs.tolist():
+        # np.unique of the (pa, pb) rows, as integer keys (the same lexicographic order; axis=0 is ~10x slower)
+        key = unique(pa * np.int64(n_parts) + pb)
+        for a, b in zip((key // n_parts).tolist(), (key % n_parts).tolist()):
             neighbours[a].append(b)
             neighbours[b].append(a)
     neighbours = [np.array(sorted(x), dtype=np.int64) for x in neighbours]

@@ -558,7 +558,9 @@ def _tangent_pairs(ctx: _Ctx, label, fits, prim) -> list:
     mid = 0.5 * (ctx.V[ctx.edges[e[pp], 0]] + ctx.V[ctx.edges[e[pp], 1]])
     pa, pb = np.minimum(label[f[pp]], label[g[pp]]), np.maximum(label[f[pp]], label[g[pp]])
     tangent = []
-    for a, b in np.unique(np.column_stack([pa, pb]), axis=0).tolist():
+    k = len(fits)  # np.unique of the (pa, pb) rows as integer keys: the same lexicographic order
+    key = unique(pa * np.int64(k) + pb)
+    for a, b in zip((key // k).tolist(), (key % k).tolist()):
         s = (pa == a) & (pb == b)
         if np.median(_angles(surface_normals(fits[a], mid[s]), surface_normals(fits[b], mid[s]))) < TANGENT_DEG:
             tangent.append((a, b))
@@ -627,7 +629,9 @@ def _crease_share(label, fits, inside, f, g, mid) -> float:
     both = np.flatnonzero(inside[f] & inside[g] & (label[f] != label[g]) & (label[f] >= 0) & (label[g] >= 0))
     la, lb = np.minimum(label[f[both]], label[g[both]]), np.maximum(label[f[both]], label[g[both]])
     sharp = measured = 0
-    for x, y in np.unique(np.column_stack([la, lb]), axis=0).tolist():
+    k = len(fits)  # np.unique of the (la, lb) rows as integer keys: the same lexicographic order
+    key = unique(la * np.int64(k) + lb)
+    for x, y in zip((key // k).tolist(), (key % k).tolist()):
         if fits[x].type == "free" or fits[y].type == "free":
             continue  # no surface to measure; a free region of step 1 is smooth by construction
         sel = both[(la == x) & (lb == y)]
@@ -755,7 +759,7 @@ def _rounded_edges(ctx: _Ctx, label, fits, faces, angles, tangent, group_area, r
 
 
 def fitted_regions(
-    V, F, *, adj, pairs, edges, smooth, priority, vnormal, area, tolerance, noise, angle, min_area, diag
+    V, F, *, adj, pairs, edges, smooth, priority, vnormal, area, tolerance, noise, angle, min_area, diag, fnormal=None
 ) -> Regions:
     """Patches as regions of fitted surfaces (see the module notes).
 
@@ -780,10 +784,15 @@ def fitted_regions(
     noise : float
         A first noise estimate (used to fit the components that measure σ).
     angle, min_area, diag : float
+    fnormal : (m, 3) float, optional
+        Unit face normals ``cross / max(|cross|, 1e-300)`` (:class:`recon.features.FaceGeometry`), when the caller
+        has them.
     """
     m = len(F)
-    cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    fn = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
+    if fnormal is None:
+        cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        fnormal = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
+    fn = fnormal
     ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag)
     ctx.fa = area
     ctx.wfn_t = np.ascontiguousarray((area[:, None] * fn).T)  # area-weighted normals (what _region_normals sums)

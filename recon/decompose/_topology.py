@@ -38,6 +38,9 @@ class Topology:
         Undirected edges, smaller vertex first.
     twin : (3m,) int
         The opposite half-edge across a manifold edge; −1 on a border or non-manifold edge.
+    twin_pairs : ((t,) int, (t,) int)
+        The manifold edges' two half-edges, the smaller first, in edge order
+        (:func:`recon.features.hinge_pairs`).
     """
 
     half_start: np.ndarray
@@ -45,6 +48,7 @@ class Topology:
     half_edge: np.ndarray
     edges: np.ndarray
     twin: np.ndarray
+    twin_pairs: tuple = ()
 
     @property
     def half_face(self) -> np.ndarray:
@@ -58,13 +62,22 @@ def topology(faces: np.ndarray, n_vertices: int) -> Topology:
     lo = np.minimum(start, end)
     hi = np.maximum(start, end)
     key = lo * np.int64(n_vertices) + hi
-    uniq, inv, counts = np.unique(key, return_inverse=True, return_counts=True)
+    # np.unique(key, return_inverse=True, return_counts=True) from one stable argsort, which also orders the
+    # half-edges by edge (the stable argsort of the inverse is that of the keys)
+    order = np.argsort(key, kind="stable")
+    aux = key[order]
+    mask = np.empty(len(aux), bool)
+    mask[:1] = True
+    np.not_equal(aux[1:], aux[:-1], out=mask[1:])
+    uniq = aux[mask]
+    inv = np.empty(len(key), np.intp)
+    inv[order] = np.cumsum(mask) - 1
+    counts = np.diff(np.append(np.flatnonzero(mask), len(mask)))
     edges = np.stack([uniq // n_vertices, uniq % n_vertices], axis=1)
     twin = np.full(len(key), -1, dtype=np.int64)
-    order = np.argsort(inv, kind="stable")
     two = counts[inv[order]] == 2
     first = order[two][0::2]
     second = order[two][1::2]
     twin[first] = second
     twin[second] = first
-    return Topology(half_start=start, half_end=end, half_edge=inv, edges=edges, twin=twin)
+    return Topology(half_start=start, half_end=end, half_edge=inv, edges=edges, twin=twin, twin_pairs=(first, second))
