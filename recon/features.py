@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError
+from .fit._surfaces import row_norms
 
 __all__ = ["FeatureField", "feature_field", "mesh_arrays", "heat_smooth"]
 
@@ -103,7 +104,7 @@ class FaceGeometry:
 
     def __init__(self, vertices, faces):
         self.cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
-        self.norm = np.linalg.norm(self.cross, axis=1)
+        self.norm = row_norms(self.cross)
         self._unit = None
 
     @property
@@ -126,7 +127,7 @@ def _laplacian(vertices, faces, geom: FaceGeometry | None = None):
         a = p[:, (k + 1) % 3] - p[:, k]
         b = p[:, (k + 2) % 3] - p[:, k]
         # k = 0: (v1 − v0) × (v2 − v0), the face's own cross product
-        cross = geom.norm if k == 0 and geom is not None else np.linalg.norm(np.cross(a, b), axis=1)
+        cross = geom.norm if k == 0 and geom is not None else row_norms(np.cross(a, b))
         cots.append(np.einsum("ij,ij->i", a, b) / np.maximum(cross, 1e-300))
     cot = np.clip(np.stack(cots, axis=1), 0.0, 10.0)  # angle at vertex k weighs the opposite edge
     i = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
@@ -134,7 +135,7 @@ def _laplacian(vertices, faces, geom: FaceGeometry | None = None):
     w = 0.5 * np.concatenate([cot[:, 0], cot[:, 1], cot[:, 2]])
     W = sp.coo_matrix((np.concatenate([w, w]), (np.concatenate([i, j]), np.concatenate([j, i]))), shape=(n, n)).tocsr()
     L = sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W
-    area = geom.area if geom is not None else 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+    area = geom.area if geom is not None else 0.5 * row_norms(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     mass = np.bincount(faces.ravel(), weights=np.repeat(area / 3.0, 3), minlength=n)
     # isolated or degenerate vertices keep their value instead of making the system singular
     mass = np.maximum(mass, max(float(area.mean()), 1e-300) * 1e-9)
@@ -225,7 +226,7 @@ def _vertex_normals(vertices, faces, geom: FaceGeometry | None = None):
 
 
 def _unit(v):
-    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
+    return v / np.maximum(row_norms(v, keepdims=True), 1e-300)
 
 
 def estimate_noise(vertices, faces, L, mass, mean_edge: float, *, vertex_normals=None, geom: FaceGeometry | None = None,
@@ -322,7 +323,7 @@ def _feature_field(vertices, faces, *, scale=None, noise=None, geom: FaceGeometr
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise MeshError(f"`scale` must be a positive number, got {scale!r}")
     e = vertices[np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])]
-    mean_edge = float(np.linalg.norm(e[:, 0] - e[:, 1], axis=1).mean())
+    mean_edge = float(row_norms(e[:, 0] - e[:, 1]).mean())
     if not mean_edge > 0:
         raise MeshError("`mesh` has only zero-length edges")
     if geom is None:

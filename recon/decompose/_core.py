@@ -30,6 +30,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from ..errors import DecompositionError, InputError
+from ..fit._surfaces import row_norms
 from ..features import FaceGeometry, FeatureField, _feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
@@ -241,7 +242,7 @@ def _normal_angle(V, F, ff: FeatureField, smooth, fn=None) -> float:
     if fn is None:
         fn = FaceGeometry(V, F).unit
     sn = ff.normals[F].sum(axis=1)
-    sn /= np.maximum(np.linalg.norm(sn, axis=1, keepdims=True), 1e-300)
+    sn /= np.maximum(row_norms(sn, keepdims=True), 1e-300)
     cos = np.clip(np.abs(np.einsum("ij,ij->i", fn, sn)), 0.0, 1.0)
     med = float(np.median(np.arccos(cos[smooth]))) if smooth.any() else 0.0
     return max(np.deg2rad(MIN_ANGLE_DEG), ANGLE_NOISE_FACTOR * med)
@@ -302,7 +303,7 @@ def _edge_graph(V, topo: Topology, critical, n) -> sp.csr_matrix:
     used[topo.half_edge[np.repeat(critical, 3)]] = True
     e = np.flatnonzero(used)
     a, b = topo.edges[e, 0], topo.edges[e, 1]
-    w = np.linalg.norm(V[a] - V[b], axis=1)
+    w = row_norms(V[a] - V[b])
     w = np.maximum(w, 1e-12 * max(float(w.max(initial=0.0)), 1.0))
     return sp.csr_matrix((w, (a, b)), shape=(n, n))
 
@@ -327,7 +328,7 @@ def _boundary_potentials(V, F, topo: Topology, patch):
     if len(bnd) == 0:
         return site_curve, site_phi, np.zeros(0)
     start, end, bp = topo.half_start[bnd], topo.half_end[bnd], hp[bnd]
-    length = np.linalg.norm(V[end] - V[start], axis=1)
+    length = row_norms(V[end] - V[start])
     # successor of a boundary half-edge: a boundary half-edge of the same patch leaving its end vertex
     key_start = bp * np.int64(n) + start
     key_end = bp * np.int64(n) + end
@@ -417,7 +418,7 @@ def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
     e2 = sk_pairs[two[sk_pairs[:, 0]] & two[sk_pairs[:, 1]]]
     g2 = sp.coo_matrix((np.ones(len(e2), np.int8), (e2[:, 0], e2[:, 1])), shape=(m, m))
     _, chain = connected_components(g2, directed=False)
-    seg_len = np.linalg.norm(centroid[e2[:, 0]] - centroid[e2[:, 1]], axis=1)
+    seg_len = row_norms(centroid[e2[:, 0]] - centroid[e2[:, 1]])
     chain_len = np.bincount(chain[e2[:, 0]], weights=seg_len, minlength=m)
     # junction clusters: degree ≥ 3 nodes joined directly or through a chain shorter than 2 scales
     high = deg >= 3
@@ -526,7 +527,7 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     ``-(patch + 2)``. An orphan with no neighbour at all stays, as a patch of its own.
     """
     e = topo.edges[pairs[:, 2]]
-    elen = np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+    elen = row_norms(V[e[:, 0]] - V[e[:, 1]])
     comp = comp.copy()
     for _ in range(10):
         orphans = {c for c, k in kind.items() if k == "orphan"}

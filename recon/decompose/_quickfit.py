@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
-from ..fit._surfaces import axis_helper, columns as _columns, cross3, row_norms
+from ..fit._surfaces import axis_helper, columns as _columns, cross3, row_norms, row_sums
 from ..fit._types import deviation_stats, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
@@ -54,7 +54,7 @@ def _circle(xy: np.ndarray):
     m = xy.mean(axis=0)
     q = xy - m
     a = _columns(2 * q, np.ones(len(q)))
-    sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
+    sol = np.linalg.lstsq(a, row_sums(q * q), rcond=None)[0]
     r2 = sol[2] + sol[:2] @ sol[:2]
     if not np.isfinite(r2) or r2 <= 0:
         return None
@@ -114,7 +114,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         return {"origin": mean.tolist(), "normal": normal.tolist()}
     if kind == "sphere":
         a = _columns(2 * q, np.ones(len(q)))
-        sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
+        sol = np.linalg.lstsq(a, row_sums(q * q), rcond=None)[0]
         r2 = sol[3] + sol[:3] @ sol[:3]
         if not np.isfinite(r2) or r2 <= 0:
             return None
@@ -157,7 +157,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
             "ref_point": (apex + hm * d).tolist(), "ref_radius": float(hm * np.tan(alpha)),
         }
     if kind == "torus":
-        s = np.sqrt(np.mean((q * q).sum(axis=1)))
+        s = np.sqrt(np.mean(row_sums(q * q)))
         a = _columns(np.cross(q / s, nrm), nrm)
         vec = np.linalg.eigh(a.T @ a)[1][:, 0]
         d, mom = vec[:3], vec[3:]
@@ -169,7 +169,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         c0 = cross3(d, mom) * s
         w = q - c0
         h = w @ d
-        rho = np.sqrt(np.maximum((w * w).sum(axis=1) - h * h, 0.0))
+        rho = np.sqrt(np.maximum(row_sums(w * w) - h * h, 0.0))
         c = _circle(_columns(rho, h))
         if c is None:
             return None

@@ -37,7 +37,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
-from ..fit._surfaces import row_norms
+from ..fit._surfaces import row_norms, row_sums
 from ._quickfit import quick_fit, surface_normals
 from ._topology import unique
 
@@ -234,8 +234,9 @@ def _error(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray, *, strict: float = 1.0
     d = np.abs(fit.distance(ctx.xyz[faces].reshape(-1, 3))).reshape(-1, 3)
     n = _normals_at(fit, ctx.centroid[faces], ctx.eps)
     cos = np.abs(np.einsum("ij,ij->i", n, ctx.fn[faces]))
-    ok = (d.max(axis=1) <= strict * ctx.tol) & (cos >= ctx.cos)
-    err = np.sqrt((d * d).mean(axis=1)) / ctx.tol + (1.0 - cos) / max(1.0 - ctx.cos, 1e-12)
+    # d.max(axis=1) and (d * d).mean(axis=1) by columns: the same maxima, sums (in order) and division by 3
+    ok = (np.maximum(np.maximum(d[:, 0], d[:, 1]), d[:, 2]) <= strict * ctx.tol) & (cos >= ctx.cos)
+    err = np.sqrt(row_sums(d * d) / 3) / ctx.tol + (1.0 - cos) / max(1.0 - ctx.cos, 1e-12)
     return err, ok
 
 
@@ -581,7 +582,7 @@ def _islands(ctx: _Ctx, label, fits, prim, comp, area, tangent) -> dict:
     bf, bg = prim[f] & ~prim[g], prim[g] & ~prim[f]
     ptri, otri, bedge = np.r_[f[bf], g[bg]], np.r_[g[bf], f[bg]], np.r_[e[bf], e[bg]]
     other = ctx.vn[ctx.edges[bedge, 0]] + ctx.vn[ctx.edges[bedge, 1]]
-    other /= np.maximum(np.linalg.norm(other, axis=1, keepdims=True), 1e-300)
+    other /= np.maximum(row_norms(other, keepdims=True), 1e-300)
     preg = label[ptri]
     comp_area = np.bincount(comp[comp >= 0], weights=area[comp >= 0], minlength=len(label))
     reg_area = np.bincount(label[label >= 0], weights=area[label >= 0], minlength=len(fits))
@@ -690,7 +691,7 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
     mesh_border = ctx.edges[~inner, 0] * np.int64(nv) + ctx.edges[~inner, 1]
     mid = 0.5 * (ctx.V[ctx.edges[e, 0]] + ctx.V[ctx.edges[e, 1]])
     smooth_n = ctx.vn[ctx.edges[e, 0]] + ctx.vn[ctx.edges[e, 1]]
-    smooth_n /= np.maximum(np.linalg.norm(smooth_n, axis=1, keepdims=True), 1e-300)
+    smooth_n /= np.maximum(row_norms(smooth_n, keepdims=True), 1e-300)
     curved_region = np.array([ft.type != "plane" for ft in fits], bool)
     out = []
     for c in unique(merged[merged >= 0]):
@@ -791,7 +792,7 @@ def fitted_regions(
     m = len(F)
     if fnormal is None:
         cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-        fnormal = cr / np.maximum(np.linalg.norm(cr, axis=1, keepdims=True), 1e-300)
+        fnormal = cr / np.maximum(row_norms(cr, keepdims=True), 1e-300)
     fn = fnormal
     ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag)
     ctx.fa = area
@@ -938,7 +939,7 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
     h = np.flatnonzero(topo.twin > np.arange(len(topo.twin)))
     pairs = np.stack([h // 3, topo.twin[h] // 3, topo.half_edge[h]], axis=1)
     cr = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    area = 0.5 * np.linalg.norm(cr, axis=1)
+    area = 0.5 * row_norms(cr)
     fn = cr / np.maximum(2.0 * area[:, None], 1e-300)
     diag = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     ctx = _Ctx(v, f, adj, pairs, topo.edges, fn, vnormal[ids], tolerance, np.deg2rad(SPLIT_ANGLE_DEG), diag)

@@ -433,7 +433,7 @@ def _cone_start(q: np.ndarray, nrm: np.ndarray, size: float):
             apex = None
     if apex is not None:
         u = q - apex
-        u /= np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-300)
+        u /= np.maximum(row_norms(u, keepdims=True), 1e-300)
         _, uvec = np.linalg.eigh(np.cov(u.T))
         d = uvec[:, 0] if np.mean(u @ uvec[:, 0]) > 0 else -uvec[:, 0]
         alpha = float(np.arccos(np.clip(np.mean(u @ d), -1.0, 1.0)))
