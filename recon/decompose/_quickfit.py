@@ -26,7 +26,7 @@ from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
 from ..fit._surfaces import axis_helper, columns as _columns, cross3, row_norms, row_sums
-from ..fit._types import deviation_stats, within_tolerance
+from ..fit._types import deviation_stats, percentile as _percentile, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
 
@@ -206,7 +206,7 @@ def quick_fit(
         if within_tolerance(dev, tol):
             if not polish:
                 return SurfaceFit(kind, params, dev, len(pts))
-        elif not refine or np.percentile(d, 90) > NEAR[kind] * tol:
+        elif not refine or _percentile(d, 90) > NEAR[kind] * tol:
             return None
     elif not refine:
         return None

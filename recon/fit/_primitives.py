@@ -35,7 +35,7 @@ from ..errors import FitError
 from ._noise import estimate_normals
 from ._trf import trf_soft_l1
 from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, as_points, cone_distance, columns as _columns, cross3, perpendicular_frame, row_norms
-from ._types import SurfaceFit, deviation_stats, within_tolerance
+from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
 
@@ -91,16 +91,20 @@ def _refine(fun, x0, q, *, scale, size, tolerance, jac="2-point"):
     """
     step = -(-len(q) // COARSE_POINTS)
     coarse = q[::step]
-    f_scale = _scale(fun(x0, coarse), scale, size)
-    res = _solve(fun, jac, x0, coarse, f_scale)
+    f0 = fun(x0, coarse)
+    f_scale = _scale(f0, scale, size)
+    res = _solve(fun, jac, x0, coarse, f_scale, f0)  # the start's residuals, computed once
     if step == 1:
         return res
-    if tolerance is not None and np.percentile(np.abs(fun(res.x, q)), 99) > 3 * tolerance:
-        return res
-    return _solve(fun, jac, res.x, q, f_scale)
+    f1 = None
+    if tolerance is not None:
+        f1 = fun(res.x, q)
+        if _percentile(np.abs(f1), 99) > 3 * tolerance:
+            return res
+    return _solve(fun, jac, res.x, q, f_scale, f1)
 
 
-def _solve(fun, jac, x0, q, f_scale):
+def _solve(fun, jac, x0, q, f_scale, f0=None):
     """``least_squares(fun, x0, args=(q,), jac=jac, loss="soft_l1", f_scale=f_scale, x_scale="jac",
     max_nfev=_MAX_NFEV)``, bit for bit, with an analytic ``jac``.
 
@@ -108,12 +112,13 @@ def _solve(fun, jac, x0, q, f_scale):
     ``least_squares``'s input checks and function wrappers (``VectorFunction``: a copy and an ``array_equal``
     per evaluation) cost about a third of the call; this runs scipy's own trust-region loop directly on the
     same inputs (scipy 1.17's ``least_squares``, default ``ftol = xtol = gtol = 1e-8``, ``tr_solver="exact"``).
+    ``f0``: ``fun(x0, q)`` when the caller has it (the loop scales it in place: it is not the caller's after this).
     """
     if _trf_no_bounds is None or not callable(jac):
         return least_squares(fun, x0, args=(q,), jac=jac, loss="soft_l1", f_scale=f_scale, x_scale="jac",
                              max_nfev=_MAX_NFEV)
     x0 = np.atleast_1d(x0).astype(float)
-    f0 = np.atleast_1d(fun(x0, q))
+    f0 = np.atleast_1d(fun(x0, q) if f0 is None else f0)
     if not np.all(np.isfinite(f0)):
         raise ValueError("Residuals are not finite in the initial point.")  # as least_squares
     # the same loop without scipy's Python around it (recon.fit._trf: same operations, same order)
@@ -128,7 +133,7 @@ def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
         if not scale > 0:
             raise FitError(f"`scale` must be > 0, got {scale}")
         return float(scale)
-    mad = 1.4826 * float(np.median(np.abs(residuals - np.median(residuals))))
+    mad = 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
     return max(mad, 1e-9 * size)
 
 
@@ -148,7 +153,7 @@ def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
     """
     if tolerance is not None:
         return float(tolerance)
-    return 4.0 * 1.4826 * float(np.median(np.abs(residuals - np.median(residuals))))
+    return 4.0 * 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
 
 
 def _failed(kind: str, n: int, reason: str) -> SurfaceFit:

@@ -57,6 +57,34 @@ def _percentile(a: np.ndarray, q: float):
     return hi - diff * (1 - g) if g >= 0.5 else lo + diff * g  # numpy's _lerp
 
 
+def percentile(a: np.ndarray, q: float):
+    """``np.percentile(a, q)`` of a 1-D float array of magnitudes (no −0.0), bit for bit: :func:`_percentile`
+    when it is finite."""
+    a = np.asarray(a)
+    if a.size and np.isfinite(a).all():
+        return _percentile(a, q)
+    return np.percentile(a, q)
+
+
+def median(a: np.ndarray):
+    """``np.median(a)`` of a 1-D float array, bit for bit, without its axis handling (~20 µs a call).
+
+    numpy partitions at the middle one or two positions (and at the last, to see a NaN) and averages them with
+    ``np.mean``: ``np.add.reduce`` of the one or two values divided by their count. The same here for a finite
+    array; anything else goes to ``np.median``.
+    """
+    a = np.asarray(a)
+    n = a.size
+    if a.ndim != 1 or n == 0 or a.dtype != np.float64 or not np.isfinite(a).all():
+        return np.median(a)
+    h = n // 2
+    if n % 2:
+        part = np.partition(a, h)
+        return np.float64(np.add.reduce(part[h : h + 1]) / 1)
+    part = np.partition(a, (h - 1, h))
+    return np.float64(np.add.reduce(part[h - 1 : h + 1]) / 2)
+
+
 def within_tolerance(deviation: dict[str, float], tolerance: float) -> bool:
     """The acceptance rule shared by every fitter.
 
