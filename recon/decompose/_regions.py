@@ -263,9 +263,13 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     res = []
     total = sum(len(f) for f in comp_faces)
     used = 0
-    for faces in comp_faces[:8]:
+    # the components' fit inputs and fits, for the caller: the same components are fitted again at the final
+    # tolerance (the same fit when the tolerance came out the same, e.g. at the floor)
+    ctx.comp_fits = {}
+    for i, faces in enumerate(comp_faces[:8]):
         fi = _FitInput(ctx, faces)
         fit = _fit_input(ctx, fi, polish=True)
+        ctx.comp_fits[i] = (ctx.tol, fi, fit)
         if fit is not None:
             res.append(fit.distance(ctx.V[fi.verts]))
         used += len(faces)
@@ -279,13 +283,21 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     return max(4.0 * sigma, floor)
 
 
-def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray, fi: _FitInput | None = None):
+def _fit_key(kind: str, faces: np.ndarray):
+    """Memo key of a polished fit of ``kind`` on the sorted triangle set ``faces`` (see :func:`_refit`)."""
+    return kind, hashlib.blake2b(faces.tobytes(), digest_size=16).digest()
+
+
+def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray, fi: _FitInput | None = None,
+              memo: dict | None = None):
     """Grow one region ring by ring over ``allowed`` triangles that stay on its surface; refit as it grows.
 
     ``faces`` sorted and unique. Bookkeeping is in the region's own size (the mesh is only touched through the
     ``inreg`` mask), so the many small seeds of a large mesh do not cost a pass over the mesh per ring. ``fi``:
-    the fit input ``fit`` was made from, if it is that of ``faces``.
+    the fit input ``fit`` was made from, if it is that of ``faces``. ``memo`` (:func:`_refit`'s): when the region's
+    last fit was made on its final triangles, it is what a refit of that type on them gives.
     """
+    made_on = -1  # size of the region the current fit was polished on (by a refit or a stall's fit)
     inreg = np.zeros(len(ctx.F), bool)
     inreg[faces] = True
     members = [faces]
@@ -323,6 +335,7 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
                 if new is None or not _accept(ctx, new, nb).any():
                     break
                 fit = new
+                made_on = len(region)
                 frontier = region
                 continue
             region = np.sort(np.concatenate(members))  # == np.flatnonzero(inreg)
@@ -335,13 +348,18 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
             fitted_size = size
             if new is not None:
                 fit = new
+                made_on = len(region)
                 frontier = region  # the new surface may accept triangles the old one refused
     region = np.sort(np.concatenate(members)) if len(members) > 1 else members[0]
+    if memo is not None and made_on == len(region):
+        # the fit of fit.type alone on these triangles is this one: _fit_input tries the types in order and
+        # returns the first that fits, each by the same quick_fit call
+        memo[_fit_key(fit.type, region)] = fit
     return region, fit
 
 
 def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=tuple(ANALYTIC_FITTERS),
-                  max_seeds: int | None = None):
+                  max_seeds: int | None = None, memo: dict | None = None):
     """Regions grown from seeds inside ``allowed``, flattest seed first. Returns a list of (faces, fit).
 
     ``max_seeds``: try at most this many seed discs (default: until every triangle was tried).
@@ -393,7 +411,7 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         fit = _fit_input(ctx, fi, types, refine=SEED_REFINE)
         if fit is None:
             continue
-        faces, fit = _grow_one(ctx, core, fit, free, fi)
+        faces, fit = _grow_one(ctx, core, fit, free, fi, memo)
         if area[faces].sum() < min_area:
             tried[faces] = True  # a seed inside would grow the same small region again
             continue
@@ -467,7 +485,7 @@ def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -
         if len(faces):
             key = None
             if memo is not None:
-                key = (fit.type, hashlib.blake2b(faces.tobytes(), digest_size=16).digest())
+                key = _fit_key(fit.type, faces)
             if key is not None and key in memo:
                 new = memo[key]
             else:
@@ -809,19 +827,27 @@ def fitted_regions(
     comp_area = np.bincount(comp, weights=area * smooth, minlength=m)
     order = [c for c in np.argsort(-comp_area, kind="stable") if comp_area[c] >= min_area]
     comp_faces = [np.flatnonzero((comp == c) & smooth) for c in order]
+    ctx.comp_fits = {}
     if tolerance is None:
         tolerance = _noise_tolerance(ctx, comp_faces, noise, diag)
         ctx.tol = tolerance
-    for c, faces in zip(order, comp_faces):
-        fit = _fit(ctx, faces)
+    # fits of face sets (by type) that step 3's refits would repeat: a region that did not change since its last fit
+    memo: dict = {}
+    for i, (c, faces) in enumerate(zip(order, comp_faces)):
+        tol0, fi, fit0 = ctx.comp_fits.get(i, (None, None, None))
+        if fi is not None and tol0 == ctx.tol:
+            fit = fit0  # the noise estimate's fit of this component, at this same tolerance
+        else:
+            fit = _fit_input(ctx, fi if fi is not None else _FitInput(ctx, faces))
         if fit is not None:
             label[faces] = len(fits)
             fits.append(fit)
+            memo[_fit_key(fit.type, faces)] = fit  # _fit tries the types in order: this is fit.type's fit alone
             continue
         allowed = np.zeros(m, bool)
         allowed[faces] = True
         allowed &= label < 0
-        found = _seed_regions(ctx, allowed, priority, min_area, area)
+        found = _seed_regions(ctx, allowed, priority, min_area, area, memo=memo)
         covered = sum(area[f].sum() for f, _ in found)
         if covered < MIN_SPLIT_COVER * comp_area[c]:
             # no analytic surface explains most of it: a free-form face (a loft), kept whole
@@ -832,6 +858,7 @@ def fitted_regions(
         for f_, fit_ in found:
             label[f_] = len(fits)
             fits.append(fit_)
+    ctx.comp_fits = {}
     log.debug("regions from smooth components: %d", len(fits))
 
     # 2. the blends: curved surfaces inside the critical region, found before the patches grow far into it so
@@ -839,12 +866,12 @@ def fitted_regions(
     #    first take what lies on them well within the noise (a fillet is tangent to its faces: within the full
     #    tolerance they would reach far into it and leave the fillet too narrow to be found)
     label = _compete(ctx, label, fits, np.ones(m, bool), strict=STRICT)
-    found = _seed_regions(ctx, label < 0, priority, min_area, area, types=CURVED)
+    found = _seed_regions(ctx, label < 0, priority, min_area, area, types=CURVED, memo=memo)
     for f_, fit_ in found:
         label[f_] = len(fits)
         fits.append(fit_)
     #    then flat areas the smoothing window called critical (a face narrower than the window, a chamfer)
-    found = _seed_regions(ctx, label < 0, priority, min_area, area, types=("plane",))
+    found = _seed_regions(ctx, label < 0, priority, min_area, area, types=("plane",), memo=memo)
     for f_, fit_ in found:
         label[f_] = len(fits)
         fits.append(fit_)
@@ -853,7 +880,6 @@ def fitted_regions(
     #    border triangles to the neighbour whose surface is clearly closer, refitting in between
     everywhere = np.ones(m, bool)
     label = _compete(ctx, label, fits, everywhere)
-    memo: dict = {}
     for _ in range(REFINE_PASSES):
         fits = _refit(ctx, label, fits, memo)
         new = _compete(ctx, label, fits, everywhere, swap=True)
