@@ -369,7 +369,12 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
     tried = ~allowed
     out = []
     incore = np.zeros(m, bool)
-    order = np.argsort(priority, kind="stable")
+    cached = getattr(ctx, "seed_order", None)  # the same priority in every call of one decomposition: sorted once
+    if cached is not None and cached[0] is priority:
+        order = cached[1]
+    else:
+        order = np.argsort(priority, kind="stable")
+        ctx.seed_order = (priority, order)
     order = order[allowed[order]]
     pos = 0
     seeds = 0
