@@ -106,6 +106,24 @@ class FaceGeometry:
         self.cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
         self.norm = row_norms(self.cross)
         self._unit = None
+        self._vf = (vertices, faces)
+        self._corners = self._centroid = None
+
+    @property
+    def corners(self) -> np.ndarray:
+        """(m, 3, 3) corner coordinates ``vertices[faces]``."""
+        if self._corners is None:
+            self._corners = self._vf[0][self._vf[1]]
+        return self._corners
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """(m, 3) ``corners.mean(axis=1)``, bit for bit: numpy adds the three corners in order and divides by 3,
+        here by columns (its reduction over an axis of 3 costs ~5x as much)."""
+        if self._centroid is None:
+            c = self.corners
+            self._centroid = ((c[:, 0] + c[:, 1]) + c[:, 2]) / 3
+        return self._centroid
 
     @property
     def area(self) -> np.ndarray:

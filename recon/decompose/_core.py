@@ -121,6 +121,7 @@ def decompose(
         V, F, adj=np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(m, 3), pairs=pairs, edges=topo.edges,
         smooth=smooth, priority=fmeasure, vnormal=ff.normals, area=area, tolerance=tolerance, noise=ff.noise,
         angle=_normal_angle(V, F, ff, smooth, geom.unit), min_area=min_area, diag=diag, fnormal=geom.unit,
+        corners=geom.corners, centroid=geom.centroid,
     )
     patch = _patch_ids(regions, area)
     n_patch = int(patch.max()) + 1 if (patch >= 0).any() else 0
@@ -162,7 +163,7 @@ def decompose(
         # -- 5. segment graph and parts ----------------------------------------------------------------------
         step("segment graph", 0.7)
         cut_keys, junction_faces, terminal_faces, chain_faces = _separators(
-            V, F, sk_pairs, sk_cross, topo, src, dist, graph, s
+            V, F, sk_pairs, sk_cross, topo, src, dist, graph, s, geom.centroid
         )
         part_of_face, part_kind = _cut_parts(m, pairs, topo, critical, cut_keys, junction_faces, terminal_faces, chain_faces)
         part_of_face = _absorb_orphans(part_of_face, part_kind, pairs, topo, V, patch)
@@ -397,7 +398,7 @@ def _skeleton_edges(topo: Topology, critical, src, site_curve, site_phi, curve_l
     return np.stack([f[keep], g[keep]], axis=1), topo.half_edge[h[keep]]
 
 
-def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
+def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s, centroid=None):
     """Classify skeleton nodes and trace the separator of every bridge (§3).
 
     Returns
@@ -412,7 +413,8 @@ def _separators(V, F, sk_pairs, sk_cross, topo, src, dist, graph, s):
     m = len(F)
     deg = np.bincount(sk_pairs.ravel(), minlength=m)
     nodes = np.flatnonzero(deg > 0)
-    centroid = V[F].mean(axis=1)
+    if centroid is None:
+        centroid = V[F].mean(axis=1)
     # chains: components of the skeleton among degree-2 nodes
     two = deg == 2
     e2 = sk_pairs[two[sk_pairs[:, 0]] & two[sk_pairs[:, 1]]]

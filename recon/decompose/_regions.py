@@ -115,13 +115,15 @@ class Regions:
 class _Ctx:
     """Mesh arrays shared by the growing steps."""
 
-    def __init__(self, V, F, adj, pairs, edges, fnormal, vnormal, tol, angle, diag):
+    def __init__(self, V, F, adj, pairs, edges, fnormal, vnormal, tol, angle, diag, xyz=None, centroid=None):
         self.V, self.F, self.adj, self.pairs, self.edges = V, F, adj, pairs, edges
         self.fn, self.vn = fnormal, vnormal
         self.tol, self.cos = tol, float(np.cos(angle))
         self.eps = 1e-5 * diag
-        self.xyz = V[F]  # (m, 3, 3) corner coordinates: one gather per distance test instead of two
-        self.centroid = self.xyz.mean(axis=1)
+        # (m, 3, 3) corner coordinates: one gather per distance test instead of two; the centroids are their
+        # mean (by columns: the same sums, in order, divided by 3)
+        self.xyz = V[F] if xyz is None else xyz
+        self.centroid = ((self.xyz[:, 0] + self.xyz[:, 1]) + self.xyz[:, 2]) / 3 if centroid is None else centroid
 
 
 def _fit(
@@ -631,10 +633,12 @@ def _islands(ctx: _Ctx, label, fits, prim, comp, area, tangent) -> dict:
 def _topology_of(ctx: _Ctx, faces: np.ndarray, mesh_border: np.ndarray) -> tuple[int, int, int]:
     """Euler characteristic, boundary loops, and how many of those run along the mesh's own border (holes)."""
     tri = ctx.F[faces]
-    ed = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    ed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     nv = len(ctx.V)
-    # the unique rows as integer keys (the same lexicographic order): np.unique(axis=0) is ~10x slower
-    uk, cnt = np.unique(ed[:, 0] * np.int64(nv) + ed[:, 1], return_counts=True)
+    # the unique rows (each sorted: min, max) as integer keys (the same lexicographic order): np.unique(axis=0)
+    # is ~10x slower, np.sort(axis=1) of pairs ~5x slower than their min and max
+    uk, cnt = np.unique(np.minimum(ed[:, 0], ed[:, 1]) * np.int64(nv) + np.maximum(ed[:, 0], ed[:, 1]),
+                        return_counts=True)
     chi = len(unique(tri)) - len(uk) + len(faces)
     uk = uk[cnt == 1]
     be = np.stack([uk // nv, uk % nv], axis=1)
@@ -649,7 +653,7 @@ def _topology_of(ctx: _Ctx, faces: np.ndarray, mesh_border: np.ndarray) -> tuple
 
 def _crease_share(label, fits, inside, f, g, mid) -> float:
     """Share of the mesh edges between two fitted regions inside ``inside`` where their surfaces meet at
-    TANGENT_DEG or more (median over each pair's shared border)."""
+    TANGENT_DEG or more (median over each pair's shared border). ``mid(idx)``: the pairs' edge midpoints at ``idx``."""
     both = np.flatnonzero(inside[f] & inside[g] & (label[f] != label[g]) & (label[f] >= 0) & (label[g] >= 0))
     la, lb = np.minimum(label[f[both]], label[g[both]]), np.maximum(label[f[both]], label[g[both]])
     sharp = measured = 0
@@ -660,7 +664,8 @@ def _crease_share(label, fits, inside, f, g, mid) -> float:
             continue  # no surface to measure; a free region of step 1 is smooth by construction
         sel = both[(la == x) & (lb == y)]
         measured += len(sel)
-        if np.median(_angles(surface_normals(fits[x], mid[sel]), surface_normals(fits[y], mid[sel]))) >= TANGENT_DEG:
+        at = mid(sel)
+        if np.median(_angles(surface_normals(fits[x], at), surface_normals(fits[y], at))) >= TANGENT_DEG:
             sharp += len(sel)
     return sharp / max(measured, 1)
 
@@ -712,9 +717,16 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
     inner = np.zeros(len(ctx.edges), bool)
     inner[e] = True
     mesh_border = ctx.edges[~inner, 0] * np.int64(nv) + ctx.edges[~inner, 1]
-    mid = 0.5 * (ctx.V[ctx.edges[e, 0]] + ctx.V[ctx.edges[e, 1]])
-    smooth_n = ctx.vn[ctx.edges[e, 0]] + ctx.vn[ctx.edges[e, 1]]
-    smooth_n /= np.maximum(row_norms(smooth_n, keepdims=True), 1e-300)
+    ea, eb = ctx.edges[e, 0], ctx.edges[e, 1]
+
+    def mid(idx):  # (0.5 * (V[a] + V[b]))[idx] of the pairs' edges, only at the rows asked for (the same values)
+        return 0.5 * (ctx.V[ea[idx]] + ctx.V[eb[idx]])
+
+    def smooth_n(idx):  # the edges' mean smoothed normal, likewise (row by row: the same values)
+        n_ = ctx.vn[ea[idx]] + ctx.vn[eb[idx]]
+        n_ /= np.maximum(row_norms(n_, keepdims=True), 1e-300)
+        return n_
+
     curved_region = np.array([ft.type != "plane" for ft in fits], bool)
     out = []
     for c in unique(merged[merged >= 0]):
@@ -732,18 +744,18 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
         border = np.flatnonzero(inside[f] != inside[g])
         out_tri = np.where(inside[f[border]], g[border], f[border])
         in_tri = np.where(inside[f[border]], f[border], g[border])
-        own = smooth_n[border]
+        own = smooth_n(border)
         for r in unique(label[in_tri]):
             if r >= 0 and fits[r].type != "free":
                 sel = label[in_tri] == r
-                own[sel] = surface_normals(fits[r], mid[border[sel]])
+                own[sel] = surface_normals(fits[r], mid(border[sel]))
         angles = {}
         for r in unique(label[out_tri]):
             if r < 0:  # cannot happen (unclaimed triangles are in some component); count it as tangent
                 angles[-1] = 0.0
                 continue
             sel = label[out_tri] == r
-            angles[int(r)] = float(np.median(_angles(surface_normals(fits[r], mid[border[sel]]), own[sel])))
+            angles[int(r)] = float(np.median(_angles(surface_normals(fits[r], mid(border[sel])), own[sel])))
         chi, loops, holes = _topology_of(ctx, faces, mesh_border)
         crease = _crease_share(label, fits, inside, f, g, mid)
         ok = (bool(angles) and min(angles.values()) >= TANGENT_DEG and chi == 2 - loops and loops - holes in (1, 2)
@@ -783,7 +795,8 @@ def _rounded_edges(ctx: _Ctx, label, fits, faces, angles, tangent, group_area, r
 
 
 def fitted_regions(
-    V, F, *, adj, pairs, edges, smooth, priority, vnormal, area, tolerance, noise, angle, min_area, diag, fnormal=None
+    V, F, *, adj, pairs, edges, smooth, priority, vnormal, area, tolerance, noise, angle, min_area, diag, fnormal=None,
+    corners=None, centroid=None,
 ) -> Regions:
     """Patches as regions of fitted surfaces (see the module notes).
 
@@ -811,13 +824,15 @@ def fitted_regions(
     fnormal : (m, 3) float, optional
         Unit face normals ``cross / max(|cross|, 1e-300)`` (:class:`recon.features.FaceGeometry`), when the caller
         has them.
+    corners, centroid : (m, 3, 3), (m, 3) float, optional
+        ``V[F]`` and its mean over the corners, when the caller has them.
     """
     m = len(F)
     if fnormal is None:
         cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
         fnormal = cr / np.maximum(row_norms(cr, keepdims=True), 1e-300)
     fn = fnormal
-    ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag)
+    ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag, corners, centroid)
     ctx.fa = area
     ctx.wfn_t = np.ascontiguousarray((area[:, None] * fn).T)  # area-weighted normals (what _region_normals sums)
     ctx.crease = SEED_CREASE_COS if 4.0 * noise < TOL_FLOOR * diag else -2.0
