@@ -136,13 +136,16 @@ class FaceGeometry:
         return self._unit
 
 
-def _laplacian(vertices, faces, geom: FaceGeometry | None = None):
-    """Clipped cotangent Laplacian L (n, n) and lumped mass diagonal (n,)."""
+def _laplacian(vertices, faces, geom: FaceGeometry | None = None, sides=None):
+    """Clipped cotangent Laplacian L (n, n) and lumped mass diagonal (n,).
+
+    ``sides``: the three ``p[:, k + 1] - p[:, k]`` (k = 0, 1, 2, indices mod 3) of ``p = vertices[faces]``, when the
+    caller has them (:func:`_sides`)."""
     n = len(vertices)
-    p = vertices[faces]  # (m, 3, 3)
+    p = geom.corners if geom is not None else vertices[faces]  # (m, 3, 3)
     cots = []
     for k in range(3):
-        a = p[:, (k + 1) % 3] - p[:, k]
+        a = sides[k] if sides is not None else p[:, (k + 1) % 3] - p[:, k]
         b = p[:, (k + 2) % 3] - p[:, k]
         # k = 0: (v1 − v0) × (v2 − v0), the face's own cross product
         cross = geom.norm if k == 0 and geom is not None else row_norms(np.cross(a, b))
@@ -349,13 +352,18 @@ def _feature_field(vertices, faces, *, scale=None, noise=None, geom: FaceGeometr
     (:func:`hinge_pairs`) when the caller has them (the decomposition forms them once for all its steps)."""
     if scale is not None and not (np.isfinite(scale) and scale > 0):
         raise MeshError(f"`scale` must be a positive number, got {scale!r}")
-    e = vertices[np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]])]
-    mean_edge = float(row_norms(e[:, 0] - e[:, 1]).mean())
+    if geom is None:
+        geom = FaceGeometry(vertices, faces)
+    p = geom.corners
+    # the edges 0-1, 1-2, 2-0 of every face (the Laplacian's side vectors; a difference and its negative have the
+    # same length): the mean over all 3 m of them, in that order
+    sides = [p[:, 1] - p[:, 0], p[:, 2] - p[:, 1], p[:, 0] - p[:, 2]]
+    mean_edge = float(np.concatenate([row_norms(x) for x in sides]).mean())
     if not mean_edge > 0:
         raise MeshError("`mesh` has only zero-length edges")
     if geom is None:
         geom = FaceGeometry(vertices, faces)
-    L, mass = _laplacian(vertices, faces, geom)
+    L, mass = _laplacian(vertices, faces, geom, sides)
     vn = _vertex_normals(vertices, faces, geom)  # the noise estimate's and the field's (the same sums)
     if noise is None:
         noise = estimate_noise(vertices, faces, L, mass, mean_edge, vertex_normals=vn, geom=geom, hinge_pairs=pairs)

@@ -242,7 +242,8 @@ def _normal_angle(V, F, ff: FeatureField, smooth, fn=None) -> float:
     ``fn``: the unit face normals (:class:`recon.features.FaceGeometry`), when the caller has them."""
     if fn is None:
         fn = FaceGeometry(V, F).unit
-    sn = ff.normals[F].sum(axis=1)
+    N = ff.normals  # ff.normals[F].sum(axis=1): numpy adds the three corners in order; by columns at a fifth of the cost
+    sn = (N[F[:, 0]] + N[F[:, 1]]) + N[F[:, 2]]
     sn /= np.maximum(row_norms(sn, keepdims=True), 1e-300)
     cos = np.clip(np.abs(np.einsum("ij,ij->i", fn, sn)), 0.0, 1.0)
     med = float(np.median(np.arccos(cos[smooth]))) if smooth.any() else 0.0
@@ -506,7 +507,12 @@ def _cut_parts(m, pairs, topo, critical, cut_keys, junction_faces, terminal_face
     n = int(topo.edges.max()) + 1
     e = topo.edges[pairs[:, 2]]
     keys = e[:, 0] * np.int64(n) + e[:, 1]
-    cut = np.isin(keys, cut_keys)
+    # np.isin(keys, cut_keys) of the sorted, unique cut keys, by a binary search
+    if len(cut_keys):
+        pos = np.minimum(np.searchsorted(cut_keys, keys), len(cut_keys) - 1)
+        cut = cut_keys[pos] == keys
+    else:
+        cut = np.zeros(len(keys), bool)
     cut |= ~(critical[pairs[:, 0]] & critical[pairs[:, 1]])
     _, comp = cut_components(m, pairs[:, :2], cut, active=critical)
     kind: dict[int, str] = {}
