@@ -12,7 +12,7 @@ import pytest
 from recon.decompose._synthetic import rounded_box
 from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
-from recon.fit._surfaces import row_norms, row_sums
+from recon.fit._surfaces import col_means, col_sums, extent, row_norms, row_sums
 from recon.fit._types import median, percentile
 
 
@@ -38,6 +38,15 @@ def test_row_norms_and_sums_are_numpys(n):
     with np.errstate(over="ignore", invalid="ignore"):
         assert np.array_equal(row_norms(special), np.linalg.norm(special, axis=1), equal_nan=True)
         assert np.array_equal(row_sums(special), special.sum(axis=1), equal_nan=True)
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 8, 9, 100, 1025, 20000])
+@pytest.mark.parametrize("k", [2, 3, 6])
+def test_column_sums_means_and_extent_are_numpys(n, k):
+    for x in _arrays(n, 3 * n, k) + [_arrays(n, 3 * n, k)[0][::3]]:
+        assert _same(col_sums(x), x.sum(axis=0))
+        assert _same(col_means(x), x.mean(axis=0))
+        assert extent(x) == float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))
 
 
 def test_median_and_percentile_are_numpys():

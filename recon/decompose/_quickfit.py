@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
-from ..fit._surfaces import axis_helper, columns as _columns, cross3, row_norms, row_sums
+from ..fit._surfaces import axis_helper, col_means, columns as _columns, cross3, extent, row_norms, row_sums
 from ..fit._types import deviation_stats, percentile as _percentile, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
@@ -51,7 +51,7 @@ def _frame(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _circle(xy: np.ndarray):
     """Kåsa circle fit; (centre (2,), radius) or None."""
-    m = xy.mean(axis=0)
+    m = col_means(xy)
     q = xy - m
     a = _columns(2 * q, np.ones(len(q)))
     sol = np.linalg.lstsq(a, row_sums(q * q), rcond=None)[0]
@@ -106,9 +106,9 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
     tol : float
         Distance tolerance (decides degeneracy: a sagitta below it means the simpler type).
     """
-    mean = pts.mean(axis=0)
+    mean = col_means(pts)
     q = pts - mean
-    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    size = extent(pts)
     if kind == "plane":
         normal = np.linalg.eigh(q.T @ q)[1][:, 0]
         return {"origin": mean.tolist(), "normal": normal.tolist()}

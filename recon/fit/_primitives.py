@@ -34,7 +34,8 @@ except ImportError:  # pragma: no cover - a scipy that moved its internals: the 
 from ..errors import FitError
 from ._noise import estimate_normals
 from ._trf import trf_soft_l1
-from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, as_points, cone_distance, columns as _columns, cross3, perpendicular_frame, row_norms
+from ._surfaces import (Cone, Cylinder, Plane, Sphere, Torus, as_points, col_means, col_sums, cone_distance, columns as _columns,
+                        cross3, extent, perpendicular_frame, row_norms)
 from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
@@ -77,7 +78,7 @@ def _prepare(points, normals, *, min_count: int, need_normals: bool):
 
 
 def _extent(points: np.ndarray) -> float:
-    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    return extent(points)
 
 
 def _refine(fun, x0, q, *, scale, size, tolerance, jac="2-point"):
@@ -185,7 +186,7 @@ def _radial(w: np.ndarray, d: np.ndarray):
 
 def _circle_2d(xy: np.ndarray) -> tuple[np.ndarray, float] | None:
     """Algebraic (Kåsa) circle fit: x² + y² = 2 c·x + k. Returns (centre, radius) or None if degenerate."""
-    mean = xy.mean(axis=0)
+    mean = col_means(xy)
     q = xy - mean
     a = _columns(2 * q, np.ones(len(q)))
     b = np.einsum("ij,ij->i", q, q)
@@ -227,7 +228,7 @@ def fit_plane(points, normals=None, *, tolerance: float | None = None, scale: fl
     w = np.ones(len(sub))
     s = None
     for _ in range(4):  # IRLS with soft-l1 weights 1/sqrt(1 + (r/s)²)
-        origin = (w[:, None] * sub).sum(axis=0) / w.sum()
+        origin = col_sums(w[:, None] * sub) / w.sum()
         q = sub - origin
         _, vec = np.linalg.eigh((w[:, None] * q).T @ q)
         normal = vec[:, 0]
@@ -260,7 +261,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     """
     pts, sub, _ = _prepare(points, normals, min_count=4, need_normals=False)
     size = _extent(sub)
-    mean = sub.mean(axis=0)
+    mean = col_means(sub)
     q = sub - mean
     a = _columns(2 * q, np.ones(len(q)))
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
@@ -305,7 +306,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     """
     pts, sub, nrm = _prepare(points, normals, min_count=5, need_normals=True)
     size = _extent(sub)
-    mean = sub.mean(axis=0)
+    mean = col_means(sub)
     q = sub - mean
     _, vec = np.linalg.eigh(nrm.T @ nrm)
     d0 = vec[:, 0]
@@ -362,7 +363,7 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     """
     pts, sub, nrm = _prepare(points, normals, min_count=6, need_normals=True)
     size = _extent(sub)
-    mean = sub.mean(axis=0)
+    mean = col_means(sub)
     q = sub - mean
     start = _cone_start(q, nrm, size)
     if start is None:
@@ -505,7 +506,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     """
     pts, sub, nrm = _prepare(points, normals, min_count=7, need_normals=True)
     size = _extent(sub)
-    mean = sub.mean(axis=0)
+    mean = col_means(sub)
     q = sub - mean
     axis = _revolution_axis(q, nrm)
     if axis is None:

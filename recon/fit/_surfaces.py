@@ -50,6 +50,40 @@ def row_sums(x: np.ndarray) -> np.ndarray:
     return np.add.reduce(x, axis=1)
 
 
+def _columns_adjacent(x) -> bool:
+    return x.ndim == 2 and x.shape[1] >= 2 and x.dtype == np.float64 and x.strides[1] == x.itemsize
+
+
+def col_sums(x: np.ndarray) -> np.ndarray:
+    """``x.sum(axis=0)`` of a real (n, k) array, bit for bit.
+
+    numpy sums each column over the rows in order, one row (k values) per inner loop: ~25 ns a row. With k >= 2
+    adjacent columns (C order, or rows strided) ``einsum`` adds in the same order at a quarter of the cost; with
+    the rows adjacent (Fortran order) it sums pairwise, so that case keeps the reduction (checked k = 2..7,
+    n = 1..10^5)."""
+    if _columns_adjacent(x):
+        return np.einsum("ij->j", x)
+    return x.sum(axis=0)
+
+
+def col_means(x: np.ndarray) -> np.ndarray:
+    """``x.mean(axis=0)`` of a real (n, k) array, bit for bit: :func:`col_sums` divided by n, as numpy divides."""
+    if _columns_adjacent(x):
+        return np.einsum("ij->j", x) / x.shape[0]
+    return x.mean(axis=0)
+
+
+def extent(x: np.ndarray) -> float:
+    """``float(np.linalg.norm(x.max(axis=0) - x.min(axis=0)))``, the bounding-box diagonal of (n, k) points.
+
+    Each column's max and min as one reduction along it (numpy's along axis 0 takes one inner loop per row); the
+    extremes are the same values (a zero's sign aside, which the squared norm does not see), and the norm of the
+    1-D difference is numpy's ``sqrt(d.dot(d))``."""
+    t = x.T
+    d = t.max(axis=1) - t.min(axis=1)
+    return float(np.sqrt(d.dot(d)))
+
+
 def row_norms(x: np.ndarray, keepdims: bool = False) -> np.ndarray:
     """``np.linalg.norm(x, axis=1, keepdims=keepdims)`` of a real (n, k) array, bit for bit (the same square,
     row sum and root), without its dispatch."""
