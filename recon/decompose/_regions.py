@@ -435,21 +435,25 @@ def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, stric
     """
     label = label.copy()
     f, g = ctx.pairs[:, 0], ctx.pairs[:, 1]
+    K = np.int64(len(fits) + 1)
+    key = None
     for _ in range(10000):
-        lf, lg = label[f], label[g]
         if swap:
+            lf, lg = label[f], label[g]
             sel = (lf != lg) & (lf >= 0) & (lg >= 0)
             cand = np.concatenate([g[sel], f[sel]])
             creg = np.concatenate([lf[sel], lg[sel]])
-        else:
+            key = unique(cand * K + creg)
+        elif key is None:
+            lf, lg = label[f], label[g]
             a = (lf >= 0) & (lg < 0) & allowed[g]
             b = (lg >= 0) & (lf < 0) & allowed[f]
             cand = np.concatenate([g[a], f[b]])
             creg = np.concatenate([lf[a], lg[b]])
-        if not len(cand):
+            key = unique(cand * K + creg)
+        if not len(key):
             break
-        key = unique(cand * np.int64(len(fits) + 1) + creg)
-        cand, creg = key // (len(fits) + 1), key % (len(fits) + 1)
+        cand, creg = key // K, key % K
         err = np.full(len(cand), np.inf)
         for r in unique(creg):
             if fits[r].type == "free":
@@ -470,12 +474,24 @@ def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, stric
         good = np.isfinite(err)
         if not good.any():
             break
+        all_cand = cand
         cand, creg, err = cand[good], creg[good], err[good]
         o = np.lexsort((err, cand))
         first = np.r_[True, cand[o][1:] != cand[o][:-1]]
-        label[cand[o][first]] = creg[o][first]
+        taken = cand[o][first]
+        label[taken] = creg[o][first]
         if swap:
             break  # one pass; the caller refits between passes
+        # the next pass's (candidate, region) pairs without a pass over the mesh: labels are only ever given here, so
+        # they are this pass's pairs whose candidate is still unlabelled, and the taken triangles' unlabelled allowed
+        # neighbours with the taken triangle's region (the same set as from the pairs: the same sorted keys)
+        nb = ctx.adj[taken]
+        reg = np.repeat(label[taken], 3)
+        nb = nb.ravel()
+        ok = nb >= 0
+        nb, reg = nb[ok], reg[ok]
+        ok = (label[nb] < 0) & allowed[nb]
+        key = unique(np.concatenate([key[label[all_cand] < 0], nb[ok] * K + reg[ok]]))
     return label
 
 
