@@ -1123,6 +1123,10 @@ def _cases_for(groups, *, quick: bool) -> list[Case]:
             cases += freecad_cases(quick=quick)
         elif g == "scaling":
             cases += scaling_cases()
+    # FreeCAD's 100k part needs recon's run on it for the ratio (the scaling group has it; otherwise add it).
+    names = {c.name for c in cases}
+    if "scaling" not in groups and f"freecad:scaling/{_size_name(FREECAD_PART_TRIANGLES)}" in names:
+        cases += scaling_cases(sizes=(FREECAD_PART_TRIANGLES,))
     return cases
 
 
