@@ -349,3 +349,35 @@ def test_chamfered_box_under_heavy_noise_is_planes():
     agreement = type_agreement(result.labels, fx.labels[result.mesh.source_face], result.mesh.face_areas,
                                {p: f.type for p, f in result.fits.items()}, [f.type for f in fx.true_faces])
     assert agreement >= 0.9
+
+
+def test_each_warning_is_printed_once_and_the_report_has_them_all(tmp_path):
+    # plate_holes/coarse: its few large triangles leave three faces out of tolerance and a shell to sew
+    from recon.fixtures import FIXTURE_DIR
+
+    proc = _recon("convert", Path(FIXTURE_DIR) / "plate_holes_coarse.stl", tmp_path / "p.step", "--no-deviation",
+                  "--report", tmp_path / "p.json", cwd=tmp_path)
+    assert proc.returncode in (0, 1), proc.stderr[-2000:]
+    warnings = json.loads((tmp_path / "p.json").read_text())["warnings"]
+    assert warnings
+    lines = proc.stderr.splitlines()
+    shown = [w for w in warnings if f"warning: {w}" in lines]
+    assert len(shown) == min(len(warnings), 5)
+    for w in warnings:  # not also as a log line of build_solid
+        assert sum(w in line for line in lines) == (1 if w in shown else 0), w
+    if len(warnings) > 5:
+        assert f"… and {len(warnings) - 5} more warnings" in proc.stderr
+
+
+def test_summary_names_how_many_warnings_it_left_out():
+    from recon._cli.convert import SUMMARY_WARNINGS, summary
+
+    report = {"validity": {"ok": True, "shape_type": "solid", "valid": True, "closed": True, "free_edges": 0,
+                           "volume": 1.0},
+              "faces_by_type": {"plane": 6}, "n_faces": 6, "seconds": {"load": 0.1},
+              "warnings": [f"w{i}" for i in range(SUMMARY_WARNINGS + 3)]}
+    text = summary(report).splitlines()
+    assert [ln for ln in text if ln.startswith("warning: ")] == [f"warning: w{i}" for i in range(SUMMARY_WARNINGS)]
+    assert text[-1].startswith("… and 3 more warnings")
+    report["warnings"] = report["warnings"][:SUMMARY_WARNINGS]
+    assert not summary(report).splitlines()[-1].startswith("…")
