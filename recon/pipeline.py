@@ -380,7 +380,8 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
     :func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of its area, the rest goes
     to the neighbouring face whose surface passes nearest; the trim is kept only if the face then fits an
     analytic surface (for a curved face, a plane) and every face that received triangles still fits its own
-    type within tolerance.
+    type within tolerance. A piece of the rest that is a planar face of its own (:func:`_planar_pieces`: a
+    chamfered box's corner triangle on the end of a chamfer, box_chamfer noisy20) becomes a face instead.
     Returns ``labels`` itself when nothing was trimmed.
     """
     pairs = _faces_adjacency(mesh)
@@ -477,7 +478,9 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     holds a face's rim as closely as the noise allows (box_fillet noisy20: the fillets' cylinders took the
     corner spheres whole). Moves are made ring by ring over the new borders with the surfaces fixed; a
     triangle only moves to a surface that holds it closer than where it was, so it ends. A face is taken
-    whole or left with enough vertices for a surface (:data:`MIN_PART_VERTICES`), and a face that received
+    whole or left with enough vertices for a surface (:data:`MIN_PART_VERTICES`) — or as a planar face of its own
+    that no surface around it holds (:func:`_planar_pieces`: a corner triangle a compromise cylinder over it and
+    a piece of a chamfer leaves when it gives the chamfer back) — and a face that received
     triangles must still fit its own type within tolerance, or it gets none. Returns ``labels`` itself when
     nothing moved.
 
