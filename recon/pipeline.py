@@ -380,7 +380,8 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
     :func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of its area, the rest goes
     to the neighbouring face whose surface passes nearest; the trim is kept only if the face then fits an
     analytic surface (for a curved face, a plane) and every face that received triangles still fits its own
-    type within tolerance.
+    type within tolerance. A piece of the rest that is a planar face of its own (:func:`_planar_pieces`: a
+    chamfered box's corner triangle on the end of a chamfer, box_chamfer noisy20) becomes a face instead.
     Returns ``labels`` itself when nothing was trimmed.
     """
     pairs = _faces_adjacency(mesh)
@@ -404,9 +405,16 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
         cands = [int(q) for q in np.unique(out[outer]) if q != p and fits.get(int(q)) and fits[int(q)].params]
         if not cands:
             continue
-        d = np.stack([np.abs(fits[q].distance(mesh.face_centroids[rest])) for q in cands])
         trial = out.copy()
-        trial[rest] = np.asarray(cands)[np.argmin(d, axis=0)]
+        # a planar piece of the rest that no neighbouring surface holds is a face of its own (a chamfered box's
+        # corner triangle on the end of a chamfer): given to a neighbour, it would bend that one off its surface
+        corners = _planar_pieces(mesh, rest, pairs, [fits[q] for q in cands] + [found[0][1]], tolerance)
+        for piece in corners:
+            trial[piece] = trial.max() + 1
+        rest = np.setdiff1d(rest, np.concatenate(corners)) if corners else rest
+        if len(rest):
+            d = np.stack([np.abs(fits[q].distance(mesh.face_centroids[rest])) for q in cands])
+            trial[rest] = np.asarray(cands)[np.argmin(d, axis=0)]
         receivers = sorted(set(trial[rest].tolist()))
         new = _fit_parts(mesh, trial, tolerance=tolerance, only=[p], upto=_ANALYTIC[-1])
         if not new[p].ok or new[p].type not in simpler:
@@ -415,9 +423,38 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
         if not all(new[q].ok and new[q].type == fits[q].type for q in receivers):
             continue  # the slivers given back must not change what their face is (box_fillet noisy20: a
             #           fillet's cylinder became a cone, whose face then failed and cost 2 % of the volume)
-        log.info("face %d was a %s: cut back to a %s, %d triangles to %d neighbours", p, fit.type, new[p].type,
-                 int((trial[rest] != p).sum()), len(receivers))
+        log.info("face %d was a %s: cut back to a %s, %d triangles to %d neighbours, %d planar pieces kept as faces",
+                 p, fit.type, new[p].type, len(rest), len(receivers), len(corners))
         out = trial
+    return out
+
+
+def _planar_pieces(mesh: Mesh, tris: np.ndarray, pairs: np.ndarray, surfaces, tolerance: float) -> list:
+    """The connected pieces of the triangles ``tris`` that are planar faces of their own: a plane holds their
+    vertices (at least :data:`MIN_CORNER_VERTICES`, fewer than :data:`MIN_PART_VERTICES`: a piece any larger is a
+    face the fit stage judges whole) within ``tolerance``, and each of ``surfaces`` (the fits around them) leaves
+    some vertex farther than ``tolerance`` away — the test :func:`_small_faces` keeps a small piece by."""
+    V, F = mesh.vertices, mesh.faces
+    if len(np.unique(F[tris])) < MIN_CORNER_VERTICES or any(s.type in _CURVED for s in surfaces):
+        return []  # next to a curved face a small flat piece is what is left of a blend (`_small_faces`)
+    inside = np.isin(pairs[:, 0], tris) & np.isin(pairs[:, 1], tris)
+    local = np.full(len(F), -1, dtype=np.int64)
+    local[tris] = np.arange(len(tris))
+    a, b = local[pairs[inside, 0]], local[pairs[inside, 1]]
+    graph = sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(len(tris), len(tris)))
+    _, comp = sp.csgraph.connected_components(graph, directed=False)
+    out = []
+    for c in np.unique(comp):
+        piece = tris[comp == c]
+        ids = np.unique(F[piece])
+        if not MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:
+            continue
+        plane = fit_plane(V[ids])
+        if np.abs(plane.distance(V[ids])).max() > tolerance:
+            continue
+        if any(s.params and np.abs(s.distance(V[ids])).max() <= tolerance for s in surfaces):
+            continue
+        out.append(piece)
     return out
 
 
@@ -441,7 +478,9 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     holds a face's rim as closely as the noise allows (box_fillet noisy20: the fillets' cylinders took the
     corner spheres whole). Moves are made ring by ring over the new borders with the surfaces fixed; a
     triangle only moves to a surface that holds it closer than where it was, so it ends. A face is taken
-    whole or left with enough vertices for a surface (:data:`MIN_PART_VERTICES`), and a face that received
+    whole or left with enough vertices for a surface (:data:`MIN_PART_VERTICES`) — or as a planar face of its own
+    that no surface around it holds (:func:`_planar_pieces`: a corner triangle a compromise cylinder over it and
+    a piece of a chamfer leaves when it gives the chamfer back) — and a face that received
     triangles must still fit its own type within tolerance, or it gets none. Returns ``labels`` itself when
     nothing moved.
 
@@ -512,10 +551,17 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     moved = out != labels
     # a remnant too small for a surface would go to the face it touches most (`_tidy`), which need not hold it
     # (box_chamfer noisy20 without this: 15 faces for 26, where the chamfers' remnants went to the planes)
+    # — unless the remnant is a planar face of its own that no neighbour holds (a chamfered box's corner left
+    # when a compromise surface over it and a piece of a chamfer gives the chamfer back): `_tidy` keeps it
     for p in np.unique(labels[moved]):
-        rest = F[out == p]
-        if len(rest) and len(np.unique(rest)) < MIN_PART_VERTICES:
-            out[moved & (labels == p)] = p
+        rest = np.flatnonzero(out == p)
+        if len(rest) and len(np.unique(F[rest])) < MIN_PART_VERTICES:
+            in_rest = np.isin(pairs, rest)
+            across = in_rest[:, 0] ^ in_rest[:, 1]
+            around = np.unique(out[np.where(in_rest[across, 0], pairs[across, 1], pairs[across, 0])])
+            pieces = _planar_pieces(mesh, rest, pairs, [fits[q] for q in around.tolist() if q in fits], tolerance)
+            if sum(len(c) for c in pieces) < len(rest):
+                out[moved & (labels == p)] = p
     moved = out != labels
     if not moved.any():
         return labels

@@ -5,7 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from recon.bench import COLUMNS, STAGES, Case, fixture_cases, loglog_slope, run_benchmark, type_agreement
+from recon.bench import (
+    COLUMNS, STAGES, Case, fixture_cases, loglog_slope, part_speed_line, render_markdown, run_benchmark, type_agreement,
+)
 from recon.fixtures import load_fixture
 
 
@@ -87,3 +89,18 @@ def test_unit_factor_takes_a_mesh_into_its_step_units():
     assert unit_factor(10.0, 254.0) == 25.4  # inches → mm
     assert unit_factor(254.0, 10.0) == pytest.approx(1 / 25.4)
     assert unit_factor(1.0, 1.01) == 1.0 and unit_factor(1.0, 1.5) == 1.0  # same units, or no unit step
+
+
+def test_part_speed_line_gives_the_ratio_or_a_lower_bound_on_a_timeout():
+    ours = {"case": "scaling/100k", "group": "scaling", "triangles": 103_296, "convert_seconds": 5.0, "faces_ours": 26}
+    done = {"case": "freecad:scaling/100k", "group": "freecad", "status": "ok", "convert_seconds": 900.0,
+            "faces_ours": 30_000}
+    line = part_speed_line([ours, done])
+    assert "FreeCAD 900 s" in line and "recon 5.0 s" in line and "**180×**" in line
+    killed = {"case": "freecad:scaling/100k", "group": "freecad", "status": "timeout", "wall_seconds": 400.0}
+    assert "**more than 80×**" in part_speed_line([ours, killed])
+    assert part_speed_line([ours]) is None  # no FreeCAD row: no claim
+    assert part_speed_line([done]) is None
+    # the pair also enters the side-by-side table, whose ratio is the same
+    md = render_markdown([ours, done])
+    assert "| scaling/100k |" in md and "180.00×" in md

@@ -438,3 +438,30 @@ def test_orientation_conflicts_count_the_edges_of_a_face_turned_over():
                                                      for g in box.faces()[i].edges()))
     turned = [f.Reversed() if i in (0, opposite) else f for i, f in enumerate(faces)]
     assert orientation_conflicts(shell_of(turned)) == 8
+
+
+def test_bspline_projection_answers_a_repeated_point_from_its_memo_with_the_same_result():
+    from recon.brep import surface_model
+    from recon.brep._surfaces import project_occ
+    from recon.fit import fit_bspline_surface
+
+    # a saddle z = (x² − y²) / 20 over a 10 × 10 grid: a free-form surface only OCC's projection handles
+    x, y = np.meshgrid(np.linspace(-5, 5, 21), np.linspace(-5, 5, 21), indexing="ij")
+    pts = np.column_stack([x.ravel(), y.ravel(), ((x**2 - y**2) / 20).ravel()])
+    idx = np.arange(x.size).reshape(x.shape)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    fit = fit_bspline_surface(pts, faces=np.r_[np.column_stack([a, b, c]), np.column_stack([a, c, d])], tolerance=0.01)
+    model = surface_model(fit)
+    assert model.kind == "bspline"
+    rng = np.random.default_rng(3)
+    probe = np.column_stack([rng.uniform(-4, 4, 30), rng.uniform(-4, 4, 30), rng.uniform(-1, 1, 30)])
+    probe = np.vstack([probe, probe[:10]])  # ten points asked again
+    q_ref, n_ref = project_occ(model.geom, probe)
+    q, n = model.project(probe)
+    assert len(model._memo) == 30
+    q2, n2 = model.project(probe[::-1])  # all from the memo now, in another order
+    assert np.array_equal(q, q_ref) and np.array_equal(n, n_ref)
+    assert np.array_equal(q2, q_ref[::-1]) and np.array_equal(model.signed_normals(probe), n_ref)
+    assert len(model._memo) == 30
+    # and the answers are foot points: on the saddle, the offset along its normal
+    assert np.abs(q_ref[:, 2] - (q_ref[:, 0] ** 2 - q_ref[:, 1] ** 2) / 20).max() < 0.01

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import sys
 import time
 from pathlib import Path
@@ -66,9 +67,25 @@ def summary(report: dict) -> str:
         )
     secs = report["seconds"]
     lines.append("time: " + ", ".join(f"{k} {v:.2f} s" for k, v in secs.items()) + f"; total {sum(secs.values()):.2f} s")
-    for w in report.get("warnings", [])[:5]:
+    warnings = report.get("warnings", [])
+    for w in warnings[:SUMMARY_WARNINGS]:
         lines.append(f"warning: {w}")
+    if len(warnings) > SUMMARY_WARNINGS:
+        lines.append(f"… and {len(warnings) - SUMMARY_WARNINGS} more warnings (all of them in --report's \"warnings\")")
     return "\n".join(lines)
+
+
+#: Warnings the summary lists; the report has all of them.
+SUMMARY_WARNINGS = 5
+
+
+class _RepeatedInSummary:
+    """Log filter: drops ``build_solid``'s warnings, which the summary (and the report) repeat. On a terminal they
+    also broke the progress line of the B-rep stage."""
+
+    def filter(self, record) -> bool:
+        return not (record.name == "recon.brep._build" and record.levelno == logging.WARNING
+                    and str(record.msg).startswith("build_solid: "))
 
 
 def run(args) -> int:
@@ -91,6 +108,9 @@ def run(args) -> int:
 
     # Progress lines only on a terminal: piped stderr carries the summary, or one line on error.
     tty = sys.stderr.isatty()
+    if not args.verbose:
+        for handler in logging.getLogger().handlers:
+            handler.addFilter(_RepeatedInSummary())
     if tty:
         print(f"recon convert {args.mesh}", file=sys.stderr)
     result = convert(
