@@ -257,3 +257,20 @@ def test_turn_of_a_cylinder_region(span, expected):
     step = span / n if full else 0.0
     got = _turn(SimpleNamespace(centroid=pts), fit, np.arange(n))
     assert got == pytest.approx(expected - step, abs=1e-9)
+
+
+def test_an_unreferenced_vertex_changes_no_part():
+    """The separators key mesh edges by the vertex count, and the cut must use the same keys: with one unreferenced
+    vertex after the last one, box_fillet's critical region was not cut at all (7 parts instead of 26)."""
+    import dataclasses
+
+    from recon.fixtures import load_fixture
+    from recon.mesh import clean_mesh
+
+    fx = load_fixture("box_fillet", "clean")
+    mesh = clean_mesh(fx.vertices, fx.faces)
+    extra = dataclasses.replace(mesh, vertices=np.vstack([mesh.vertices, mesh.vertices.max(axis=0) + 100.0]))
+    a, b = decompose(mesh), decompose(extra)
+    assert len(a.parts) == 26
+    assert np.array_equal(a.labels, b.labels)
+    assert [(p.kind, p.sharp) for p in a.parts] == [(p.kind, p.sharp) for p in b.parts]

@@ -165,7 +165,8 @@ def decompose(
         cut_keys, junction_faces, terminal_faces, chain_faces = _separators(
             V, F, sk_pairs, sk_cross, topo, src, dist, graph, s, geom.centroid
         )
-        part_of_face, part_kind = _cut_parts(m, pairs, topo, critical, cut_keys, junction_faces, terminal_faces, chain_faces)
+        part_of_face, part_kind = _cut_parts(m, len(V), pairs, topo, critical, cut_keys, junction_faces,
+                                             terminal_faces, chain_faces)
         part_of_face = _absorb_orphans(part_of_face, part_kind, pairs, topo, V, patch)
         # renumber critical parts after the patches, junctions first
         crit_ids = unique(part_of_face[critical & (part_of_face >= 0)])
@@ -502,9 +503,12 @@ def _local_geodesic(graph: sp.csr_matrix, V, a: int, b: int, s: float, tree: cKD
     return idx[np.asarray(path[::-1])]
 
 
-def _cut_parts(m, pairs, topo, critical, cut_keys, junction_faces, terminal_faces, chain_faces):
-    """Components of the critical region cut along separators, with their kinds (§3)."""
-    n = int(topo.edges.max()) + 1
+def _cut_parts(m, n_vertices, pairs, topo, critical, cut_keys, junction_faces, terminal_faces, chain_faces):
+    """Components of the critical region cut along separators, with their kinds (§3).
+
+    ``cut_keys`` are edges keyed ``a * n_vertices + b`` as :func:`_separators` makes them.
+    """
+    n = int(n_vertices)
     e = topo.edges[pairs[:, 2]]
     keys = e[:, 0] * np.int64(n) + e[:, 1]
     # np.isin(keys, cut_keys) of the sorted, unique cut keys, by a binary search
