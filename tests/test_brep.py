@@ -465,3 +465,34 @@ def test_bspline_projection_answers_a_repeated_point_from_its_memo_with_the_same
     assert len(model._memo) == 30
     # and the answers are foot points: on the saddle, the offset along its normal
     assert np.abs(q_ref[:, 2] - (q_ref[:, 0] ** 2 - q_ref[:, 1] ** 2) / 20).max() < 0.01
+
+
+def test_tessellation_for_pictures_leaves_out_a_face_the_mesher_cannot_mesh(monkeypatch, caplog):
+    """OpenCascade's mesher gives some valid faces no triangles (a B-spline face of the ABC model did): ground
+    truth must raise, a picture leaves that face out and keeps the others with their labels."""
+    from recon.brep import _tessellate
+    from recon.errors import BrepError
+
+    shape = Box(2, 3, 4)
+    v0, f0, lab0, _ = labelled_tessellation(shape, deflection=0.05)
+    real = _tessellate.BRep_Tool
+
+    class NoTriangulationForFace2:
+        calls = 0
+
+        @classmethod
+        def Triangulation_s(cls, face, loc):
+            cls.calls += 1
+            return None if cls.calls == 3 else real.Triangulation_s(face, loc)
+
+        Surface_s = staticmethod(real.Surface_s)
+
+    monkeypatch.setattr(_tessellate, "BRep_Tool", NoTriangulationForFace2)
+    with pytest.raises(BrepError, match="face 2 has no triangulation"):
+        labelled_tessellation(shape, deflection=0.05)
+    NoTriangulationForFace2.calls = 0
+    v, f, lab, surfaces = labelled_tessellation(shape, deflection=0.05, skip_unmeshed=True)
+    assert len(surfaces) == 6  # still indexed by face
+    assert sorted(set(lab.tolist())) == [0, 1, 3, 4, 5]
+    assert len(f) == int((lab0 != 2).sum())  # every other face's triangles, as without the failure
+    assert "face 2 could not be meshed" in caplog.text

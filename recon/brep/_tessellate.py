@@ -24,7 +24,8 @@ def _wrapped(shape):
     return getattr(shape, "wrapped", shape)
 
 
-def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, weld: float = 1e-7):
+def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, weld: float = 1e-7,
+                          skip_unmeshed: bool = False):
     """Tessellate every face of ``shape`` and label each triangle by its face.
 
     Parameters
@@ -36,6 +37,10 @@ def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, wel
         Angular deflection in radians.
     weld : float
         Vertices closer than this are merged (OpenCascade meshes shared edges identically on both faces).
+    skip_unmeshed : bool
+        Leave out (with a warning) a face OpenCascade's mesher gives no triangles, instead of raising
+        :class:`~recon.errors.BrepError`: for pictures, where one such face must not cost the rest. Ground
+        truth needs every face, so the default raises.
 
     Returns
     -------
@@ -62,7 +67,13 @@ def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, wel
         loc = TopLoc_Location()
         tri = BRep_Tool.Triangulation_s(face, loc)
         if tri is None:
-            raise BrepError(f"labelled_tessellation: face {label} has no triangulation")
+            if not skip_unmeshed:
+                raise BrepError(f"labelled_tessellation: face {label} has no triangulation")
+            log.warning("face %d could not be meshed: it is left out of the picture", label)
+            surfaces.append(BRep_Tool.Surface_s(face))
+            label += 1
+            exp.Next()
+            continue
         trsf = loc.Transformation()
         nodes = np.array([[(p := tri.Node(i).Transformed(trsf)).X(), p.Y(), p.Z()]
                           for i in range(1, tri.NbNodes() + 1)])
@@ -78,7 +89,7 @@ def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, wel
         label += 1
         exp.Next()
     if not verts:
-        raise InputError("labelled_tessellation: `shape` has no faces")
+        raise InputError("labelled_tessellation: `shape` has no faces" + (" it could mesh" if label else ""))
     v = np.concatenate(verts)
     f = np.concatenate(tris)
     lab = np.concatenate(labels)
@@ -106,8 +117,9 @@ def labelled_tessellation(shape, *, deflection: float, angular: float = 0.3, wel
 
 def result_tessellation(result, *, deflection: float):
     """Tessellate a :class:`~recon.brep.BrepResult` for pictures: vertices, faces, face label per triangle, and
-    the part kind (``"patch"``, ``"linear"``, ``"junction"``, ``"terminal"``) of every label."""
-    v, f, lab, _ = labelled_tessellation(result.occ, deflection=deflection)
+    the part kind (``"patch"``, ``"linear"``, ``"junction"``, ``"terminal"``) of every label. A face the mesher
+    cannot triangulate is left out with a warning (the shape was already written: the picture shows the rest)."""
+    v, f, lab, _ = labelled_tessellation(result.occ, deflection=deflection, skip_unmeshed=True)
     kinds = []
     exp = TopExp_Explorer(result.occ, TopAbs_FACE)
     while exp.More():
