@@ -37,6 +37,12 @@ MAD_TO_SIGMA = 1.4826
 #: a sliver of a neighbouring face adds (box_fillet noisy20: a plane with fillet slivers at 1.07σ, which a
 #: cylinder of radius 700 took to 1.01σ).
 MISFIT_SCALE = float(np.sqrt(2.0))
+#: On a noise-free mesh a later type replaces the first one within tolerance when its chords (the triangles'
+#: edges) lie at most this share as far from it (RMS at their midpoints), see :func:`_hugging_chords`.
+CHORD_GAIN = 0.5
+#: ... and only when the first type's chords are at least this many tolerances off: dense meshes have short
+#: chords that every surface through their vertices holds, and nothing is gained there.
+CHORD_FLOOR = 0.1
 
 
 def fit_surface(
@@ -66,7 +72,9 @@ def fit_surface(
     points' noise ``sigma`` is given and the first accepted type's residual is above it, the later analytic
     types are fitted too and the one of least Bayesian information criterion wins (:func:`_least_complex`);
     at the noise level nothing can do better and the first type stands. Without ``sigma`` (a noise-free mesh,
-    whose residuals are its tessellation's, not noise) the first type within tolerance is the answer.
+    whose residuals are its tessellation's, not noise) the first type within tolerance is the answer, unless
+    the ``faces`` show its vertices lie on it by coincidence (:func:`_hugging_chords`: a coarse cylinder's
+    vertices are its two end circles, which a sphere holds exactly as well).
 
     Parameters
     ----------
@@ -81,7 +89,8 @@ def fit_surface(
     allow_bspline : bool
         Fall back to :func:`fit_bspline_surface` when no analytic type fits.
     faces : (m, 3) int, optional
-        The patch's triangles, for the B-spline's parametrisation when the patch is not a height field.
+        The patch's triangles (indices into ``points``): for the B-spline's parametrisation when the patch is
+        not a height field, and, without ``sigma``, to test the chords (see above).
     sigma : float, optional
         The points' noise σ (the tolerance is best its 4σ, as the default is); see above.
 
@@ -113,8 +122,11 @@ def fit_surface(
             continue
         if fit:
             log.debug("fit_surface: %s accepted (%s)", kind, fit.deviation)
-            if kind == "bspline" or sigma is None:
+            if kind == "bspline":
                 return fit
+            if sigma is None:
+                return fit if faces is None else _hugging_chords(fit, pts, normals, faces, tolerance=tolerance,
+                                                                 types=types)
             return _least_complex(fit, pts, normals, tolerance=tolerance, sigma=sigma, types=types)
         candidates.append(fit)
     if not candidates:
@@ -161,4 +173,45 @@ def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: 
     if best is not first:
         log.debug("fit_surface: %s (σ̂ %.3g) explains the points better than %s (σ̂ %.3g)", best.type,
                   _residual_scale(best, pts), first.type, scale)
+    return best
+
+
+def _chord_rms(fit: SurfaceFit, pts: np.ndarray, faces) -> float:
+    """RMS distance of ``fit`` at the midpoints of the triangles' edges (each edge once)."""
+    f = np.asarray(faces, dtype=np.int64)
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    edges = np.unique(edges, axis=0)
+    mid = 0.5 * (pts[edges[:, 0]] + pts[edges[:, 1]])
+    return float(np.sqrt(np.mean(fit.distance(mid) ** 2)))
+
+
+def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float, types) -> SurfaceFit:
+    """On a noise-free mesh: ``first`` (the simplest type within tolerance at the vertices), or the later
+    analytic type whose surface the triangles' edges lie on.
+
+    A CAD tessellation places its vertices on the true surface and its edges along it where they can: a
+    cylinder's strips run straight from one end circle to the other, on the surface. A sphere through those
+    two circles (there is one whenever they have the same radius) holds every vertex exactly, yet bows away
+    from every strip's long edge by about ``h² / 8r``. So the chords decide: a later type within tolerance at
+    the vertices replaces ``first`` when the RMS distance at the edge midpoints falls to :data:`CHORD_GAIN` of
+    ``first``'s or less, once ``first``'s is at least :data:`CHORD_FLOOR` tolerances (the ABC model: a
+    sphere's chords at 0.78 tolerances, the cylinder's at 0.07). A plane holds its chords exactly: it stands.
+    """
+    if first.type == "plane":
+        return first
+    best, best_c = first, _chord_rms(first, pts, faces)
+    if best_c < CHORD_FLOOR * tolerance:
+        return first
+    for kind in tuple(ANALYTIC_FITTERS)[tuple(ANALYTIC_FITTERS).index(first.type) + 1 :]:
+        if kind not in types:
+            continue
+        fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
+        if not fit:
+            continue
+        c = _chord_rms(fit, pts, faces)
+        if c <= CHORD_GAIN * best_c:
+            best, best_c = fit, c
+    if best is not first:
+        log.debug("fit_surface: the chords lie on the %s (RMS %.3g), not on the %s (%.3g)", best.type, best_c,
+                  first.type, _chord_rms(first, pts, faces))
     return best
