@@ -180,8 +180,8 @@ def _chord_rms(fit: SurfaceFit, pts: np.ndarray, faces) -> float:
     """RMS distance of ``fit`` at the midpoints of the triangles' edges (each edge once)."""
     f = np.asarray(faces, dtype=np.int64)
     edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    edges = np.unique(edges, axis=0)
-    mid = 0.5 * (pts[edges[:, 0]] + pts[edges[:, 1]])
+    key = np.unique(edges[:, 0] * len(pts) + edges[:, 1])
+    mid = 0.5 * (pts[key // len(pts)] + pts[key % len(pts)])
     return float(np.sqrt(np.mean(fit.distance(mid) ** 2)))
 
 
