@@ -510,3 +510,47 @@ def test_lean_trust_region_loop_is_least_squares_bit_for_bit(seed, max_nfev):
     assert got.nfev == ref.nfev and got.status == ref.status
     assert got.x.tobytes() == ref.x.tobytes()
     assert got.fun.tobytes() == ref.fun.tobytes()
+
+
+def _coarse_can(r=5.0, h=8.0, n=24):
+    """A CAD-style tessellation of a cylinder's side: vertices only on its two end circles, strips between them;
+    and the vertex normals a whole closed can (flat caps) would give those vertices."""
+    t = 2 * np.pi * np.arange(n) / n
+    ring = np.c_[r * np.cos(t), r * np.sin(t)]
+    pts = np.r_[np.c_[ring, np.zeros(n)], np.c_[ring, np.full(n, h)]]
+    i = np.arange(n)
+    j = (i + 1) % n
+    faces = np.r_[np.c_[i, j, n + j], np.c_[i, n + j, n + i]]
+    radial = np.c_[np.cos(t), np.sin(t), np.zeros(n)]
+    caps = np.r_[np.tile([0.0, 0.0, -1.0], (n, 1)), np.tile([0.0, 0.0, 1.0], (n, 1))]
+    mixed = np.r_[radial, radial] + caps  # the side's and the cap's triangles averaged at each circle vertex
+    return pts, faces, np.r_[radial, radial], mixed / np.linalg.norm(mixed, axis=1, keepdims=True)
+
+
+def test_chords_pick_the_cylinder_whose_end_circles_a_sphere_also_holds():
+    """Both end circles (radius 5, 8 apart) lie on the sphere of radius √(5² + 4²) about the axis's midpoint, so on a
+    noise-free mesh the sphere, tried first, holds every vertex exactly. The strips' long edges run on the
+    cylinder but 1.40 inside that sphere at their midpoints: given the triangles, the cylinder is chosen."""
+    pts, faces, radial, _ = _coarse_can()
+    by_vertices = fit_surface(pts, radial, tolerance=0.05)
+    assert by_vertices.type == "sphere" and by_vertices.params["radius"] == pytest.approx(np.sqrt(41), rel=1e-6)
+    fit = fit_surface(pts, radial, tolerance=0.05, faces=faces)
+    assert fit.type == "cylinder" and fit.ok
+    assert fit.params["radius"] == pytest.approx(5.0, rel=1e-6)
+    assert abs(fit.params["axis_dir"][2]) == pytest.approx(1.0, abs=1e-9)
+    # with the noise given, the points decide as before (vertices only: the sphere leaves no residual)
+    assert fit_surface(pts, radial, tolerance=0.05, faces=faces, sigma=0.01).type == "sphere"
+
+
+def test_fit_stage_takes_a_noise_free_part_s_normals_from_its_own_triangles():
+    """At a can's rims the vertex normals average the side and the caps (45° off the side's normal): the
+    cylinder's axis from them would lie across the true axis. The fit stage's part fit uses the side's own
+    triangles' normals there and recovers the cylinder exactly."""
+    from recon.pipeline import _fit_triangles
+
+    pts, faces, _, mixed = _coarse_can(n=32)
+    assert not fit_cylinder(pts, mixed, tolerance=0.05)  # from the vertex normals no cylinder fits
+    fit = _fit_triangles(pts, faces, mixed, 0.05, 0)
+    assert fit.ok and fit.type == "cylinder"
+    assert fit.params["radius"] == pytest.approx(5.0, rel=1e-6)
+    assert abs(fit.params["axis_dir"][2]) == pytest.approx(1.0, abs=1e-9)
