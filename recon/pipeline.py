@@ -718,6 +718,8 @@ def _own_normals(V: np.ndarray, tris: np.ndarray, local: np.ndarray, k: int) -> 
     average in the faces beyond the edge. The ABC model's holes: from the vertex normals the cylinder's axis
     came out tilted and its fit 16× out of tolerance; from their own triangles it fits to 10⁻⁹. (The
     decomposition's region fits use the same rule, :func:`recon.decompose._regions._region_normals`.)
+    Only the analytic fitters get them: a B-spline over a part that is several faces parametrises better over
+    the mesh's normals (pocket coarse: its mixed part's B-spline came out farther than the plane with them).
     """
     fn = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])  # length: twice the area
     out = np.stack([np.bincount(local.ravel(), weights=np.repeat(fn[:, j], 3), minlength=k) for j in range(3)],
@@ -780,7 +782,7 @@ def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = Non
     if upto is not None:
         return fit_surface(V[ids], nrm, tolerance=tolerance, types=_ANALYTIC[: _ANALYTIC.index(upto) + 1],
                            allow_bspline=False, faces=local, sigma=noise)
-    fit = fit_surface(V[ids], nrm, tolerance=tolerance, faces=local, sigma=noise)
+    fit = fit_surface(V[ids], nrm, tolerance=tolerance, faces=local, sigma=noise, bspline_normals=vn[ids])
     if not fit.params:  # nothing at all could be fitted: the B-spline must carry it
         log.warning("part %d: no surface fits (%s)", p, fit.reason)
     return fit

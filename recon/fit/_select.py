@@ -54,6 +54,7 @@ def fit_surface(
     allow_bspline: bool = True,
     faces=None,
     sigma: float | None = None,
+    bspline_normals=None,
 ) -> SurfaceFit:
     """Fit the simplest surface type that matches the points within ``tolerance``.
 
@@ -93,6 +94,9 @@ def fit_surface(
         not a height field, and, without ``sigma``, to test the chords (see above).
     sigma : float, optional
         The points' noise σ (the tolerance is best its 4σ, as the default is); see above.
+    bspline_normals : (n, 3) float, optional
+        Normals for the B-spline fallback instead of ``normals`` (the fit stage gives the analytic fitters a
+        noise-free part's own normals, the B-spline the mesh's: see :func:`recon.pipeline._own_normals`).
 
     Returns
     -------
@@ -115,7 +119,8 @@ def fit_surface(
         if kind == "bspline":
             if not allow_bspline:
                 continue
-            fit = fit_bspline_surface(pts, normals, faces=faces, tolerance=tolerance)
+            fit = fit_bspline_surface(pts, normals if bspline_normals is None else bspline_normals, faces=faces,
+                                      tolerance=tolerance)
         elif kind in types:
             fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
         else:
