@@ -709,6 +709,11 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.nd
     return vn / np.where(n > 0, n, 1.0)[:, None]
 
 
+#: A noise-free part's own normal replaces the mesh's vertex normal where the two differ by more than this: the
+#: vertex lies on a sharp edge (30°, the crease a noise-free seed disc does not grow across, `SEED_CREASE_COS`).
+OWN_NORMAL_COS = float(np.cos(np.deg2rad(30.0)))
+
+
 def _own_normals(V: np.ndarray, tris: np.ndarray, local: np.ndarray, k: int) -> np.ndarray:
     """(k, 3) unit normals at a part's k vertices from its own triangles ``tris`` alone (area-weighted);
     ``local`` numbers their corners 0 … k − 1.
@@ -778,7 +783,11 @@ def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = Non
         return SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, len(ids), False,
                           f"{len(ids)} vertices: too few for a surface")
     local = local.reshape(-1, 3)
-    nrm = vn[ids] if noise is not None else _own_normals(V, tris, local, len(ids))
+    nrm = vn[ids]
+    if noise is None:  # where the part's own triangles turn the normal by more than a crease's angle, theirs
+        own = _own_normals(V, tris, local, len(ids))
+        crease = np.einsum("ij,ij->i", own, nrm) < OWN_NORMAL_COS
+        nrm = np.where(crease[:, None], own, nrm)
     if upto is not None:
         return fit_surface(V[ids], nrm, tolerance=tolerance, types=_ANALYTIC[: _ANALYTIC.index(upto) + 1],
                            allow_bspline=False, faces=local, sigma=noise)
