@@ -663,10 +663,14 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
     comp = np.where(small, comp, -1)
     neighbour_fits: dict[int, SurfaceFit] = {}
     labels, small = labels.copy(), small.copy()
+    # on a noise-free mesh a CAD tessellation's planar face can be two triangles: a plane holds any three
+    # points, but no neighbour's surface holding them is the evidence
+    memo = _FIT_MEMO.get()
+    noise_free = memo is not None and memo.get("noise") is None
     for c in np.unique(comp[comp >= 0]):
         tris = np.flatnonzero(comp == c)
         ids = np.unique(F[tris])
-        if len(ids) < MIN_CORNER_VERTICES:
+        if len(ids) < (3 if noise_free else MIN_CORNER_VERTICES):
             continue
         plane = fit_plane(V[ids])
         if np.abs(plane.distance(V[ids])).max() > tolerance:
@@ -685,7 +689,7 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
             labels[tris] = others[int(np.argmin(off))]
             small[tris] = False
             continue
-        if any(neighbour_fits[o].type in _CURVED for o in others):
+        if not noise_free and any(neighbour_fits[o].type in _CURVED for o in others):
             continue  # next to a curved face a small flat piece is what is left of a blend, not a face
         labels[tris] = labels.max() + 1
         small[tris] = False
