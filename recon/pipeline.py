@@ -180,8 +180,7 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
         # On a noise-free mesh every triangle of a sharp edge's strip lies on one of the two faces: a part the
         # decomposition calls sharp that its neighbours do not explain is more than an edge (the ABC model's
         # slots, four faces across a thin plate, went into the plate's faces and no plane held them)
-        memo = _FIT_MEMO.get()
-        noise_free = memo is not None and memo.get("noise") is None
+        noise_free = _noise_free()
         for pid in features:
             cands = [c for c in candidates[pid] if patch_fits[c].params]
             if not cands or (nverts[pid] < MIN_PART_VERTICES and not parts[pid].sharp):
@@ -353,8 +352,7 @@ def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: flo
     pairs = _faces_adjacency(mesh)
     area = mesh.face_areas
     out = labels
-    memo = _FIT_MEMO.get()
-    noise_free = memo is not None and memo.get("noise") is None
+    noise_free = _noise_free()
     for p, fit in sorted(fits.items()):
         if fit.ok and not (noise_free and fit.type == "bspline"):
             continue
@@ -665,10 +663,11 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
     labels, small = labels.copy(), small.copy()
     # on a noise-free mesh a CAD tessellation's planar face can be two triangles: a plane holds any three
     # points, but no neighbour's surface holding them is the evidence
-    memo = _FIT_MEMO.get()
-    noise_free = memo is not None and memo.get("noise") is None
-    for c in np.unique(comp[comp >= 0]):
-        tris = np.flatnonzero(comp == c)
+    noise_free = _noise_free()
+    clusters = [np.flatnonzero(comp == c) for c in np.unique(comp[comp >= 0])]
+    if noise_free:  # a ring of a slot's four walls is four planar faces: each flat piece is judged alone
+        clusters = [g for tris in clusters for g in _coplanar_pieces(V, F, tris, pairs, tolerance)]
+    for tris in clusters:
         ids = np.unique(F[tris])
         if len(ids) < (3 if noise_free else MIN_CORNER_VERTICES):
             continue
@@ -695,6 +694,25 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
         small[tris] = False
         log.info("a planar piece of %d triangles between %d faces kept as a face of its own", len(tris), len(others))
     return labels, small
+
+
+def _coplanar_pieces(V: np.ndarray, F: np.ndarray, tris: np.ndarray, pairs: np.ndarray, tolerance: float) -> list:
+    """The triangles ``tris`` as connected pieces whose neighbouring triangles lie in one plane: two triangles
+    sharing an edge join when each one's far vertex lies within ``tolerance`` of the other's plane."""
+    inside = np.isin(pairs[:, 0], tris) & np.isin(pairs[:, 1], tris)
+    a, b = pairs[inside, 0], pairs[inside, 1]
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+    def off(x, y):  # the largest distance of y's corners from x's plane
+        return np.abs(np.einsum("ij,ikj->ik", n[x], V[F[y]] - V[F[x, 0]][:, None, :])).max(axis=1)
+
+    flat = (off(a, b) <= tolerance) & (off(b, a) <= tolerance)
+    m = len(F)
+    graph = sp.coo_matrix((np.ones(int(flat.sum())), (a[flat], b[flat])), shape=(m, m))
+    _, comp = sp.csgraph.connected_components(graph, directed=False)
+    comp = comp[tris]
+    return [tris[comp == c] for c in np.unique(comp)]
 
 
 def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
@@ -729,6 +747,12 @@ def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.nd
 #: A noise-free part's own normal replaces the mesh's vertex normal where the two differ by more than this: the
 #: vertex lies on a sharp edge (30°, the crease a noise-free seed disc does not grow across, `SEED_CREASE_COS`).
 OWN_NORMAL_COS = float(np.cos(np.deg2rad(30.0)))
+
+
+def _noise_free() -> bool:
+    """Whether the conversion running is on a noise-free mesh (the decomposition measured σ = 0: a CAD export)."""
+    memo = _FIT_MEMO.get()
+    return memo is not None and memo.get("noise") is None
 
 
 def _own_normals(V: np.ndarray, tris: np.ndarray, local: np.ndarray, k: int) -> np.ndarray:
@@ -792,7 +816,7 @@ def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = Non
     ids, local = np.unique(tris, return_inverse=True)
     memo = _FIT_MEMO.get()
     noise = memo.get("noise") if memo is not None else None
-    if MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:  # a corner kept by `_small_faces`
+    if (3 if _noise_free() else MIN_CORNER_VERTICES) <= len(ids) < MIN_PART_VERTICES:  # kept by `_small_faces`
         plane = fit_plane(V[ids], tolerance=tolerance)
         if plane.ok:
             return plane

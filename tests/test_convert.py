@@ -404,3 +404,27 @@ def test_summary_names_how_many_warnings_it_left_out():
     assert text[-1].startswith("… and 3 more warnings")
     report["warnings"] = report["warnings"][:SUMMARY_WARNINGS]
     assert not summary(report).splitlines()[-1].startswith("…")
+
+
+def test_cad_export_with_two_triangle_faces_gives_back_its_faces(tmp_path):
+    """A CAD export's tessellation, as OpenCascade makes it: a 40 × 30 × 3 plate with a round hole and a
+    rectangular slot, 204 triangles; each of its 8 walls is 2 triangles (4 vertices), the hole's 84 triangles
+    have their vertices on its two rims only (a sphere holds those too). The 11 true faces come back: 10 planes
+    and the hole's cylinder, a valid solid within 10⁻⁶ % of the mesh."""
+    from collections import Counter
+
+    from build123d import Box, Cylinder, Pos
+
+    from recon import convert
+    from recon.brep import labelled_tessellation
+
+    shape = Box(40, 30, 3) - Pos(-8, 0, 0) * Cylinder(4, 3) - Pos(10, 0, 0) * Box(8, 12, 3)
+    v, f, lab, _ = labelled_tessellation(shape, deflection=0.05)
+    assert sorted(np.bincount(lab).tolist()) == [2] * 8 + [52, 52, 84]
+    path = tmp_path / "plate.stl"
+    trimesh.Trimesh(v, f, process=False).export(path)
+    rep = convert(path).report
+    assert rep["validity"]["ok"]
+    assert rep["n_faces"] == len(shape.faces()) == 11
+    assert Counter(rep["faces_by_type"]) == Counter({"plane": 10, "cylinder": 1})
+    assert rep["deviation"]["mesh_to_shape"]["p95_pct"] < 1e-6
