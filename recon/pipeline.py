@@ -178,8 +178,10 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
         dissolved = []
         nverts = _vertex_counts(mesh.faces, labels)
         # On a noise-free mesh every triangle of a sharp edge's strip lies on one of the two faces: a part the
-        # decomposition calls sharp that its neighbours do not explain is more than an edge (the ABC model's
-        # slots, four faces across a thin plate, went into the plate's faces and no plane held them)
+        # decomposition calls sharp that its neighbours do not explain, and that analytic surfaces cover, is
+        # faces of its own (the ABC model's slots, four faces across a thin plate, went into the plate's faces
+        # and no plane held them). One that nothing covers stays an edge: casting's kept 98 faces, out of
+        # tolerance, and its B-rep came out open.
         noise_free = _noise_free()
         for pid in features:
             cands = [c for c in candidates[pid] if patch_fits[c].params]
@@ -189,12 +191,28 @@ def face_labels(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> np.ndarr
             d = np.stack([np.abs(patch_fits[c].distance(centroids[tris])) for c in cands])
             nearest = d.min(axis=0)
             explained = areas[tris][nearest <= tolerance].sum() / max(areas[tris].sum(), 1e-300)
-            if (parts[pid].sharp and not noise_free) or explained >= EXPLAINED_SHARE:
+            if explained >= EXPLAINED_SHARE or parts[pid].sharp and not (noise_free and _covered(mesh, tris, tolerance)):
                 labels[tris] = np.asarray(cands)[np.argmin(d, axis=0)]
                 dissolved.append(pid)
         log.info("%d of %d feature parts are sharp: their triangles went to the patches", len(dissolved), len(features))
         labels = _absorb(labels, pairs, np.isin(labels, dissolved))
     return _tidy(mesh, labels, tolerance=tolerance)
+
+
+def _covered(mesh: Mesh, tris: np.ndarray, tolerance: float) -> bool:
+    """Whether one analytic surface fits the triangles ``tris`` within tolerance, or analytic regions grown
+    inside them cover them as :func:`split_unfitted` would split them."""
+    if _fit_parts(mesh, _one_label(len(mesh.faces), tris), tolerance=tolerance, only=[0], upto=_ANALYTIC[-1])[0].ok:
+        return True
+    total, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=SPLIT_MIN_SHARE)
+    return len(found) >= 2 and sum(mesh.face_areas[r].sum() for r, _ in found) >= SPLIT_COVER * total
+
+
+def _one_label(m: int, tris: np.ndarray) -> np.ndarray:
+    """Labels of ``m`` triangles: 0 on ``tris``, 1 elsewhere."""
+    lab = np.ones(m, dtype=np.int64)
+    lab[tris] = 0
+    return lab
 
 
 def _tidy(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> np.ndarray:
