@@ -487,7 +487,8 @@ def _planar_pieces(mesh: Mesh, tris: np.ndarray, pairs: np.ndarray, surfaces, to
     return out
 
 
-def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, dissolve: bool = False) -> np.ndarray:
+def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, dissolve: bool = False,
+               givers=None) -> np.ndarray:
     """Labels with boundary triangles moved to the neighbouring face whose analytic surface they lie on.
 
     The decomposition draws its parts' borders before any face is fitted whole, and under noise it draws them
@@ -518,6 +519,10 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     own also holds within the noise (revolved noisy20: cone pieces with a rim of the cylinder below, whose own
     cones fit them at 1.1-1.4 σ, which no merge can take in: their union with the cone or the cylinder fits
     neither). They receive none.
+
+    With ``givers`` (faces no surface fits, from :func:`dissolve_misfits`), only those faces give triangles
+    away, and each goes whole — but for debris under :data:`MIN_PART_VERTICES` vertices, which :func:`_tidy`
+    places — or not at all.
     """
     from .decompose._quickfit import surface_normals
     from .fit._select import MISFIT_SCALE, _residual_scale
@@ -541,6 +546,8 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     if dissolve and not len(explained):
         return labels
     receiving = np.setdiff1d(analytic, explained)
+    only_from = explained if dissolve else None if givers is None else np.asarray(sorted(givers), dtype=np.int64)
+    misfit_givers = set() if givers is None else {int(g) for g in givers}
     out = labels.copy()
     # A candidate move depends on nothing but the labels of its two triangles, with the surfaces fixed: after
     # the first ring, only pairs with a triangle that just moved can offer one (crank: the first round went
@@ -564,8 +571,8 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
         for p in np.intersect1d(own, receiving):
             d = on(p, tri[own == p])
             here[own == p] = d if misfits[p] else np.where(np.isfinite(d), -1.0, np.inf)
-        if dissolve:
-            here[~np.isin(own, explained)] = -np.inf  # only the explained faces give triangles away
+        if only_from is not None:
+            here[~np.isin(own, only_from)] = -np.inf  # only the explained faces (the givers) give triangles away
         better = there < here
         if not better.any():
             break
@@ -584,6 +591,13 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     # when a compromise surface over it and a piece of a chamfer gives the chamfer back): `_tidy` keeps it
     for p in np.unique(labels[moved]):
         rest = np.flatnonzero(out == p)
+        if int(p) in misfit_givers:
+            # a face no surface fits goes whole, but for debris too small for a surface (which `_tidy` places), or
+            # stays whole: a larger remnant may still get a face on its own poor surface, and a piece of it may not
+            # (rocker-arm: a B-spline face 2.8x out built, its remnant after giving 174 triangles away did not)
+            if len(np.unique(F[rest])) >= MIN_PART_VERTICES:
+                out[moved & (labels == p)] = p
+            continue
         if len(rest) and len(np.unique(F[rest])) < MIN_PART_VERTICES:
             in_rest = np.isin(pairs, rest)
             across = in_rest[:, 0] ^ in_rest[:, 1]
@@ -606,6 +620,69 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
              int((out != labels).sum()), len(refused),
              f"; faces {explained.tolist()} lie on their neighbours' surfaces" if dissolve else "")
     return out
+
+
+def dissolve_misfits(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
+    """Labels with every face that no surface fits by far given to the surfaces around and inside it.
+
+    A face whose best surface leaves its points farther than :data:`recon.fit._types.ACCEPT_MAX_FACTOR` ×
+    ``tolerance`` on average (RMS: farther than any accepted fit's largest deviation) is not a face a designer
+    drew but a decomposition failure: on a CAD tessellation of long slivers, a fan of triangles that alternate
+    with a neighbour's (crank: a flat bottom with eight teeth of the wall beside it, a torus 30× out of
+    tolerance; a strip of slivers between two tori, a B-spline 190× out). On crank no face was built on such a
+    surface (the filling failed as well), and the shell had a hole there. So
+
+    - its triangles move, ring by ring, to the neighbouring faces whose analytic surfaces they lie on
+      (:func:`grow_faces` with these faces as the only givers; a receiver must still fit its own type), when
+      that leaves of it nothing but debris too small for a surface (under :data:`MIN_PART_VERTICES` vertices,
+      which :func:`_tidy` absorbs). ``grow_faces`` would keep such debris and with it the whole face; a larger
+      remnant is kept whole instead: a face on its own poor surface may still build where a piece of it fails;
+    - when one analytic region grown inside it covers :data:`TRIM_COVER` of its area (as
+      :func:`trim_to_surface` cuts back a face) and what is left beside it after the moves is too small for a
+      face of its own (fewer than :data:`MIN_PART_VERTICES` vertices: debris), that region is the face.
+
+    A face that fits no surface because it is coarse (a few large triangles across a curved face: the coarse
+    fixtures) has no neighbour that holds its triangles and no debris beside one surface, and stays as it is.
+
+    Returns ``labels`` itself when no face is that far out or nothing changed.
+    """
+    from .fit._types import ACCEPT_MAX_FACTOR
+
+    far = sorted(p for p, f in fits.items()
+                 if not f.ok and np.isfinite(f.deviation["rms"]) and f.deviation["rms"] > ACCEPT_MAX_FACTOR * tolerance)
+    if not far:
+        return labels
+    out = labels.copy()
+    fits = dict(fits)
+    kept = {}
+    for p in far:
+        tris = np.flatnonzero(labels == p)
+        _, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=TRIM_COVER, max_seeds=TRIM_SEEDS)
+        if found:
+            q = int(out.max()) + 1
+            out[found[0][0]] = q
+            new = _fit_parts(mesh, out, tolerance=tolerance, only=[q])[q]
+            if new.ok and new.type in _ANALYTIC:
+                fits[q] = new
+                kept[q] = p
+            else:
+                out[out == q] = p
+    grown = grow_faces(mesh, out, fits, tolerance=tolerance, givers=far)
+    for q, p in list(kept.items()):
+        # the surface inside is the face only when what is left beside it is debris too small for a face of its
+        # own (crank: a flat bottom and eight teeth of the wall); a larger rest would be a face no surface fits
+        rest = np.flatnonzero(grown == p)
+        if len(rest) and len(np.unique(mesh.faces[rest])) >= MIN_PART_VERTICES:
+            if grown is out:
+                grown = out.copy()
+            grown[grown == q] = p
+            del kept[q]
+    if not kept and (grown == labels).all():
+        return labels
+    log.info("faces %s fit no surface by far (RMS above %g× the tolerance): %d cut back to the analytic surface "
+             "inside them, %d triangles given to the faces around them whose surfaces they lie on", far,
+             ACCEPT_MAX_FACTOR, len(kept), int((grown != out).sum()))
+    return grown
 
 
 def _explained_faces(labels: np.ndarray, analytic: np.ndarray, pairs: np.ndarray, on) -> np.ndarray:
@@ -981,6 +1058,15 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
             labels = _tidy(mesh, grown, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
             labels, fits = _trimmed(mesh, labels, fits, tolerance)
+            merged, left = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
+            if len(left) < len(fits):
+                log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
+                labels = _tidy(mesh, merged, tolerance=tolerance)
+                fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        dissolved = dissolve_misfits(mesh, labels, fits, tolerance=tolerance)
+        if dissolved is not labels:
+            labels = _tidy(mesh, dissolved, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
             merged, left = merge_same_surface(mesh, labels, fits, tolerance=tolerance)
             if len(left) < len(fits):
                 log.info("%d faces merged with a neighbour on the same surface", len(fits) - len(left))
