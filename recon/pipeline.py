@@ -64,6 +64,14 @@ GROW_ROUNDS = 3
 #: vertices, the fewest a triangle subdivided once has (3 corners, 3 mid-edge points) — three points are
 #: any plane, the other three are the evidence.
 MIN_CORNER_VERTICES = 6
+#: On a noise-free mesh the vertices are exact and a CAD export draws a rectangular face with 2 triangles: 4
+#: vertices, 3 for the plane and 1 as evidence (a single triangle is any plane) ...
+MIN_FLAT_VERTICES = 4
+#: ... when its triangles are this many times the mesh's median triangle area on average. Measured: the small
+#: flat pieces of dense noise-free meshes 0.2–1.4 (joint, casting: debris between curved faces, which kept as
+#: faces took joint from 17 to 52 faces); a CAD export's two-triangle faces 4.4–22 (a plate's walls), 187 (the
+#: ABC model's tab).
+DRAWN_AREA_RATIO = 3.0
 
 Progress = Callable[[str, float], None]
 
@@ -756,15 +764,22 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
     comp = np.where(small, comp, -1)
     neighbour_fits: dict[int, SurfaceFit] = {}
     labels, small = labels.copy(), small.copy()
-    # on a noise-free mesh a CAD tessellation's planar face can be two triangles: a plane holds any three
-    # points, but no neighbour's surface holding them is the evidence
-    noise_free = _noise_free()
-    clusters = [np.flatnonzero(comp == c) for c in np.unique(comp[comp >= 0])]
-    if noise_free:  # a ring of a slot's four walls is four planar faces: each flat piece is judged alone
-        clusters = [g for tris in clusters for g in _coplanar_pieces(V, F, tris, pairs, tolerance)]
+    # On a noise-free mesh a CAD export draws a flat face with as few triangles as it can, each far larger than
+    # the mesh's typical one (`_drawn_flat`): such a piece is a face from 4 vertices on, next to curved faces
+    # too, and a cluster of them that is not flat is judged by its flat pieces (a slot's ring of four walls).
+    big = _drawn_flat(mesh) if _noise_free() else (lambda tris: False)
+    clusters = []
+    for c in np.unique(comp[comp >= 0]):
+        tris = np.flatnonzero(comp == c)
+        ids = np.unique(F[tris])
+        if big(tris) and np.abs(fit_plane(V[ids]).distance(V[ids])).max() > tolerance:
+            clusters += [g for g in _coplanar_pieces(V, F, tris, pairs, tolerance) if big(g)]
+        else:
+            clusters.append(tris)
     for tris in clusters:
         ids = np.unique(F[tris])
-        if len(ids) < (3 if noise_free else MIN_CORNER_VERTICES):
+        drawn = big(tris)
+        if len(ids) < (MIN_FLAT_VERTICES if drawn else MIN_CORNER_VERTICES):
             continue
         plane = fit_plane(V[ids])
         if np.abs(plane.distance(V[ids])).max() > tolerance:
@@ -783,12 +798,19 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
             labels[tris] = others[int(np.argmin(off))]
             small[tris] = False
             continue
-        if not noise_free and any(neighbour_fits[o].type in _CURVED for o in others):
+        if not drawn and any(neighbour_fits[o].type in _CURVED for o in others):
             continue  # next to a curved face a small flat piece is what is left of a blend, not a face
         labels[tris] = labels.max() + 1
         small[tris] = False
         log.info("a planar piece of %d triangles between %d faces kept as a face of its own", len(tris), len(others))
     return labels, small
+
+
+def _drawn_flat(mesh: Mesh):
+    """A test of triangle sets: whether their mean area is :data:`DRAWN_AREA_RATIO` times the mesh's median
+    triangle area or more (a flat face a CAD export drew with a few large triangles)."""
+    limit = DRAWN_AREA_RATIO * float(np.median(mesh.face_areas))
+    return lambda tris: len(tris) > 0 and float(mesh.face_areas[tris].mean()) >= limit
 
 
 def _coplanar_pieces(V: np.ndarray, F: np.ndarray, tris: np.ndarray, pairs: np.ndarray, tolerance: float) -> list:
@@ -911,7 +933,7 @@ def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = Non
     ids, local = np.unique(tris, return_inverse=True)
     memo = _FIT_MEMO.get()
     noise = memo.get("noise") if memo is not None else None
-    if (3 if _noise_free() else MIN_CORNER_VERTICES) <= len(ids) < MIN_PART_VERTICES:  # kept by `_small_faces`
+    if (MIN_FLAT_VERTICES if _noise_free() else MIN_CORNER_VERTICES) <= len(ids) < MIN_PART_VERTICES:  # `_small_faces`
         plane = fit_plane(V[ids], tolerance=tolerance)
         if plane.ok:
             return plane
