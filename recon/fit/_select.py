@@ -148,6 +148,15 @@ def _residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
     return MAD_TO_SIGMA * float(np.median(np.abs(fit.distance(pts))))
 
 
+def _later_fits(first: SurfaceFit, pts, normals, *, tolerance: float, types):
+    """The fits within tolerance of the analytic types after ``first``'s (among ``types``), in order."""
+    for kind in tuple(ANALYTIC_FITTERS)[tuple(ANALYTIC_FITTERS).index(first.type) + 1 :]:
+        if kind in types:
+            fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
+            if fit:
+                yield fit
+
+
 def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: float, types) -> SurfaceFit:
     """The analytic type of least BIC among ``first`` (the simplest within tolerance) and the later ones.
 
@@ -166,12 +175,7 @@ def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: 
         return n * np.log(max(s, floor) ** 2) + N_PARAMS[fit.type] * np.log(n)
 
     best, best_bic = first, bic(first, scale)
-    for kind in tuple(ANALYTIC_FITTERS)[tuple(ANALYTIC_FITTERS).index(first.type) + 1 :]:
-        if kind not in types:
-            continue
-        fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
-        if not fit:
-            continue
+    for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
         b = bic(fit, _residual_scale(fit, pts))
         if b < best_bic:
             best, best_bic = fit, b
@@ -207,12 +211,7 @@ def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float,
     best, best_c = first, _chord_rms(first, pts, faces)
     if best_c < CHORD_FLOOR * tolerance:
         return first
-    for kind in tuple(ANALYTIC_FITTERS)[tuple(ANALYTIC_FITTERS).index(first.type) + 1 :]:
-        if kind not in types:
-            continue
-        fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
-        if not fit:
-            continue
+    for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
         c = _chord_rms(fit, pts, faces)
         if c <= CHORD_GAIN * best_c:
             best, best_c = fit, c
