@@ -14,6 +14,7 @@ def add_parser(sub):
     p.add_argument("--preview", help="output PNG preview")
     p.add_argument("--scale", type=float, help="feature scale in mesh units (default: from sampling and noise)")
     p.add_argument("--omega-min", type=float, help="skeleton pruning threshold (arc length, mesh units)")
+    p.add_argument("--jobs", type=int, metavar="N", help="processes to use (default: the cores available)")
     p.set_defaults(func=run)
     return p
 
@@ -26,8 +27,10 @@ def run(args) -> int:
 
     if args.scale is not None and not args.scale > 0:
         raise InputError(f"--scale must be a positive length, got {args.scale}")
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     mesh = load_mesh(args.mesh)
-    dec = decompose(mesh, scale=args.scale, omega_min=args.omega_min)
+    dec = decompose(mesh, scale=args.scale, omega_min=args.omega_min, jobs=args.jobs)
     write_json(args.json, dec.to_json(triangle_labels=input_labels(mesh, dec.labels)))
     if args.preview:
         from ..preview import render_parts
