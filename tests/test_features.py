@@ -36,6 +36,32 @@ def test_noise_of_an_exact_tessellation_is_zero():
     assert feature_field((V, F)).noise < 1e-9 * diag
 
 
+@pytest.mark.parametrize("part", ["lofted", "revolved"])
+def test_noise_of_a_coarse_cad_export_is_zero(part):
+    """The coarse lofted and revolved fixtures are OpenCascade tessellations (their vertices on the true STEP),
+    mostly of curved faces: the lower quartile of the hinge heights is the chords' sagitta, not noise, and their
+    planar faces' facets are coplanar, which noise never makes them. Also after a rigid motion and scaling."""
+    from recon.features import hinge_pairs
+    from recon.fixtures import load_fixture
+    from recon.mesh import load_mesh
+
+    mesh = load_mesh(load_fixture(part, "coarse").stl_path)
+    V, F = mesh.vertices, mesh.faces
+    h1, h2 = hinge_pairs(F, len(V))
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    h = np.abs(np.einsum("ij,ij->i", V[np.roll(F, 1, axis=1).ravel()[h2]] - V[F.ravel()[h1]], n[h1 // 3]))
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    assert np.percentile(h, 25) > 1e-4 * diag  # what the lower quartile alone would have taken for noise
+    assert feature_field((V, F)).noise == 0.0
+    q, _ = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))
+    assert feature_field((0.01 * V @ q.T + [40, -30, 7], F)).noise == 0.0
+    # the same mesh with noise of σ = 0.05 % of the diagonal has no flat hinge left
+    rng = np.random.default_rng(4)
+    noisy = V + rng.normal(scale=5e-4 * diag, size=V.shape)
+    assert feature_field((noisy, F)).noise > 0.0
+
+
 def test_rigid_motion_and_scaling_invariance():
     V, F, _ = rounded_box(size=(20, 16, 12), radius=3.0, spacing=1.0)
     a = feature_field((V, F))

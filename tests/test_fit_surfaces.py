@@ -359,6 +359,32 @@ def test_bspline_height_field_within_two_sigma():
     assert len(fit.params["knots_v"]) == nv + fit.params["degree_v"] + 1
 
 
+def test_bspline_on_few_exact_points_takes_a_finer_grid():
+    """400 points exactly on z = 0.5 sin(x) sin(y) over two periods each way (a coarse CAD tessellation of a
+    wavy face): 4 points per control point cap the grid at 7 spans, too coarse for the waves; as exact points
+    (2 per control point) the fit holds them within tolerance, and so it does the surface between them."""
+    g = np.linspace(0.0, 4 * np.pi, 20)
+    x, y = np.meshgrid(g, g)
+    wave = lambda x, y: 0.5 * np.sin(x) * np.sin(y)  # noqa: E731
+    pts = np.column_stack([x.ravel(), y.ravel(), wave(x, y).ravel()])
+    tol = 1e-2  # 2 % of the waves' amplitude
+    assert not fit_bspline_surface(pts, tolerance=tol)
+    fit = fit_bspline_surface(pts, tolerance=tol, exact=True)
+    assert fit, fit.reason
+    # between the points too: a 4× finer grid of the true surface, inside the sampled square
+    h = np.linspace(0.2, 4 * np.pi - 0.2, 80)
+    xx, yy = np.meshgrid(h, h)
+    between = np.column_stack([xx.ravel(), yy.ravel(), wave(xx, yy).ravel()])
+    assert np.abs(fit.distance(between)).max() <= 2 * tol
+    # from EXACT_MAX_POINTS points on, exact points get the same grid as any (4 per control point is enough there)
+    g = np.linspace(0.0, 4 * np.pi, 40)
+    x, y = np.meshgrid(g, g)
+    dense = np.column_stack([x.ravel(), y.ravel(), wave(x, y).ravel()])
+    a = fit_bspline_surface(dense, tolerance=tol / 10)
+    b = fit_bspline_surface(dense, tolerance=tol / 10, exact=True)
+    np.testing.assert_array_equal(np.array(a.params["control_points"]), np.array(b.params["control_points"]))
+
+
 def test_bspline_extends_past_the_patch():
     """Every point's closest surface point is inside the domain, not on its border: the surface can be trimmed."""
     rng = np.random.default_rng(21)

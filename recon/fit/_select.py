@@ -75,7 +75,8 @@ def fit_surface(
     at the noise level nothing can do better and the first type stands. Without ``sigma`` (a noise-free mesh,
     whose residuals are its tessellation's, not noise) the first type within tolerance is the answer, unless
     the ``faces`` show its vertices lie on it by coincidence (:func:`_hugging_chords`: a coarse cylinder's
-    vertices are its two end circles, which a sphere holds exactly as well).
+    vertices are its two end circles, which a sphere holds exactly as well); with ``faces`` the B-spline then
+    takes the points as exact (``fit_bspline_surface(exact=True)``: a finer control grid for as few points).
 
     Parameters
     ----------
@@ -120,7 +121,7 @@ def fit_surface(
             if not allow_bspline:
                 continue
             fit = fit_bspline_surface(pts, normals if bspline_normals is None else bspline_normals, faces=faces,
-                                      tolerance=tolerance)
+                                      tolerance=tolerance, exact=sigma is None and faces is not None)
         elif kind in types:
             fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
         else:
