@@ -8,6 +8,10 @@ the mesh's bounding-box diagonal, and per B-rep face.
   the solid), see :class:`recon.brep._distance.BrepDistance`;
 * shape → mesh: points exactly on the B-rep faces (tessellation nodes plus area-uniform samples),
   unsigned distance to the mesh triangles (``trimesh.proximity.closest_point``, exact to them).
+
+:func:`model_deviation` compares two B-reps the same way, on points exactly on each: a reconstruction against
+the CAD model its mesh was made from. Unlike the mesh's deviation it does not contain the mesh's noise (at a
+noise σ along the normals even the true model lies 1.96 σ from 5 % of the mesh's vertices).
 """
 
 from __future__ import annotations
@@ -20,7 +24,10 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["DeviationStats", "FaceDeviation", "DeviationReport", "deviation", "mesh_distance", "plot_deviation"]
+__all__ = [
+    "DeviationStats", "FaceDeviation", "DeviationReport", "ModelDeviation", "deviation", "model_deviation", "mesh_distance",
+    "plot_deviation",
+]
 
 log = logging.getLogger(__name__)
 
@@ -307,7 +314,8 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     return best, exact
 
 
-def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | None = None, rng=None) -> DeviationReport:
+def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | None = None, rng=None,
+              names=None) -> DeviationReport:
     """Distances from a mesh to a B-rep and back, overall and per face.
 
     Parameters
@@ -323,6 +331,9 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
         default :data:`DEFAULT_SAMPLES`.
     rng : numpy.random.Generator, optional
         For the samples; default ``np.random.default_rng(0)`` (reproducible reports).
+    names : sequence of str, optional
+        A name per face of a shape passed in (not a STEP file), in the shape's face order (``TopExp_Explorer``);
+        default ``face_0``, ``face_1``, ….
 
     Returns
     -------
@@ -342,12 +353,16 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
     rng = np.random.default_rng(0) if rng is None else rng
 
     if isinstance(shape_or_step_path, (str, os.PathLike)):
+        if names is not None:
+            raise InputError("names: a STEP file's face names are read from it; pass names with a shape only")
         shape, names = read_step(shape_or_step_path)
     else:
-        shape, names = getattr(shape_or_step_path, "wrapped", shape_or_step_path), None
+        shape = getattr(shape_or_step_path, "wrapped", shape_or_step_path)
     brep = BrepDistance(shape, rng=rng)
     if names is None:
         names = tuple(f"face_{i}" for i in range(len(brep.faces)))
+    elif len(names) != len(brep.faces):
+        raise InputError(f"names: {len(names)} names for a shape of {len(brep.faces)} faces")
 
     diagonal = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
     signed, nearest, _ = brep.signed_distance(v)
@@ -391,6 +406,72 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
         nearest_face=nearest,
         notes=tuple(notes),
     )
+
+
+@dataclass(frozen=True)
+class ModelDeviation:
+    """Distances between two B-reps (:func:`model_deviation`), as percentages of ``diagonal`` in ``to_json``."""
+
+    to_reference: DeviationStats  # points on the shape → the reference
+    from_reference: DeviationStats  # points on the reference → the shape
+
+    def to_json(self) -> dict:
+        return {"to_reference": self.to_reference.to_json(), "from_reference": self.from_reference.to_json()}
+
+
+def model_deviation(shape, reference, *, samples: int | None = None, diagonal: float | None = None,
+                    shape_scale: float = 1.0, rng=None) -> ModelDeviation:
+    """Distances from a B-rep to a reference B-rep and back, on points exactly on each.
+
+    Parameters
+    ----------
+    shape, reference : TopoDS_Shape, build123d/CadQuery shape, str or path-like
+        B-reps, or STEP files.
+    samples : int, optional
+        Area-uniform samples on each (no tessellation nodes: percentiles are shares of the area); default
+        :data:`DEFAULT_SAMPLES`.
+    diagonal : float, optional
+        The length percentages refer to, in the reference's units; default the reference's bounding-box diagonal
+        (of its samples).
+    shape_scale : float
+        The factor that takes ``shape``'s coordinates into the reference's units (a mesh in mm, its CAD model in m).
+    rng : numpy.random.Generator, optional
+        Default ``np.random.default_rng(0)``.
+
+    Returns
+    -------
+    ModelDeviation
+        Unsigned distances in the reference's units; a point whose nearest face could not be measured is left out.
+    """
+    from .brep._distance import BrepDistance
+
+    if samples is not None and (int(samples) != samples or samples < 1):
+        raise InputError(f"samples: expected a positive integer, got {samples!r}")
+    rng = np.random.default_rng(0) if rng is None else rng
+    count = DEFAULT_SAMPLES if samples is None else int(samples)
+    a, b = (BrepDistance(_occ_shape(s), rng=rng) for s in (shape, reference))
+    # area-uniform points only: the tessellation nodes crowd at edges and on curved faces, and a percentile over
+    # them would weigh those by how finely BRepMesh cut them
+    pa, _ = a.surface_samples(count, rng=rng, nodes=False)
+    pb, _ = b.surface_samples(count, rng=rng, nodes=False)
+    if diagonal is None:
+        diagonal = float(np.linalg.norm(pb.max(axis=0) - pb.min(axis=0)))
+    k = float(shape_scale)
+    if not (np.isfinite(k) and k > 0):
+        raise InputError(f"shape_scale: expected a positive factor, got {shape_scale!r}")
+    to_ref = b.signed_distance(k * pa)[0]
+    from_ref = k * a.signed_distance(pb / k)[0]
+    return ModelDeviation(DeviationStats.of(np.abs(to_ref), diagonal, signed=False),
+                          DeviationStats.of(np.abs(from_ref), diagonal, signed=False))
+
+
+def _occ_shape(shape):
+    """The ``TopoDS_Shape`` of a shape or a STEP file."""
+    if isinstance(shape, (str, os.PathLike)):
+        from .brep._step_read import read_step
+
+        return read_step(shape)[0]
+    return getattr(shape, "wrapped", shape)
 
 
 def plot_deviation(mesh_vertices, mesh_faces, signed, path, *, limit: float | None = None,

@@ -962,6 +962,7 @@ def convert(
     scale: float | None = None,
     deviation: bool = True,
     progress: Progress | None = None,
+    jobs: int | None = None,
 ) -> Conversion:
     """Reconstruct a B-rep from a triangle mesh.
 
@@ -979,6 +980,8 @@ def convert(
         Measure the deviation between the mesh and the result (both ways) for the report.
     progress : callable(stage, fraction), optional
         Called with a stage name from :data:`STAGES` and 0.0 when it starts, 1.0 when it ends.
+    jobs : int, optional
+        Processes the decomposition may use (default: the cores available; see :func:`recon.decompose.decompose`).
 
     Returns
     -------
@@ -1006,7 +1009,7 @@ def convert(
 
     t = time.perf_counter()
     step("decompose", 0.0)
-    dec = decompose(mesh, scale=scale)
+    dec = decompose(mesh, scale=scale, jobs=jobs)
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
@@ -1042,7 +1045,7 @@ def convert(
         t = time.perf_counter()
         step("deviation", 0.0)
         try:
-            dev = measure(mesh.vertices, mesh.faces, brep.occ)
+            dev = measure(mesh.vertices, mesh.faces, brep.occ, names=_face_names(brep))
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
             dev_error = str(err)
@@ -1113,6 +1116,18 @@ def _trimmed(mesh: Mesh, labels: np.ndarray, fits: dict, tolerance: float) -> tu
         return labels, fits
     labels = _tidy(mesh, trimmed, tolerance=tolerance)
     return labels, _fit_parts(mesh, labels, tolerance=tolerance)
+
+
+def _face_names(brep) -> list[str]:
+    """The record name of every face of ``brep.occ``, in the deviation report's face order (``faces_of``); a face
+    no record holds (none expected) keeps the deviation's own ``face_i``."""
+    from .brep._step_read import faces_of
+
+    named = [(r.face, r.name) for r in brep.faces if r.face is not None]
+    names = []
+    for i, face in enumerate(faces_of(brep.occ)):
+        names.append(next((name for f, name in named if f.IsSame(face)), f"face_{i}"))
+    return names
 
 
 def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:

@@ -496,3 +496,41 @@ def test_tessellation_for_pictures_leaves_out_a_face_the_mesher_cannot_mesh(monk
     assert sorted(set(lab.tolist())) == [0, 1, 3, 4, 5]
     assert len(f) == int((lab0 != 2).sum())  # every other face's triangles, as without the failure
     assert "face 2 could not be meshed" in caplog.text
+
+
+
+def test_filling_through_every_sample_only_where_every_third_is_off(monkeypatch):
+    """The filling fallback's point sets (recon.brep._build.FILLING_POINTS): every 3rd of 48 samples first; all
+    of them when that gives no face, or a face off the part's area by more than AREA_RATIO_WARNING, and then
+    the face whose area is nearer; 10 samples (fewer than 16) are all of them, once."""
+    from recon.brep import _build
+
+    calls = []
+    areas = {}
+
+    def through(loops, edges, points, normals, context, *, precision, timeout):
+        calls.append(len(points))
+        a = areas.get(len(points))
+        return (f"face{len(points)}", a, "filled", "") if a else (None, 0.0, "failed", f"no face from {len(points)}")
+
+    monkeypatch.setattr(_build, "_fallback_face_through", through)
+    pts = np.zeros((48, 3))
+    cases = [  # areas by point count, the part's area, the calls expected, the face expected
+        ({16: 1.5, 48: 1.0}, 1.0, [16], "face16"),     # within 2× of the part's: kept
+        ({16: 3.75, 48: 1.2}, 1.0, [16, 48], "face48"),  # 3.75× off: all samples, nearer
+        ({16: 3.75, 48: 5.0}, 1.0, [16, 48], "face16"),  # all samples farther off: the first stands
+        ({48: 1.0}, 1.0, [16, 48], "face48"),           # no face from every 3rd
+        ({16: 3.75}, None, [16], "face16"),            # no part area to compare with: the first face
+    ]
+    for got_areas, expected_area, expected_calls, expected_face in cases:
+        calls.clear()
+        areas.clear()
+        areas.update(got_areas)
+        face, _, _, _ = _build._fallback_face([], [], pts, pts, None, precision=1e-3, timeout=5.0,
+                                              expected_area=expected_area)
+        assert (calls, face) == (expected_calls, expected_face)
+    calls.clear()
+    areas.clear()
+    face, _, status, msg = _build._fallback_face([], [], pts[:10], pts[:10], None, precision=1e-3, timeout=5.0,
+                                                 expected_area=1.0)
+    assert calls == [10] and (face, status, msg) == (None, "failed", "no face from 10")

@@ -43,6 +43,34 @@ def test_sharp_box_gives_six_planes_and_the_exact_volume(sharp_box):
     assert "faces: 6 (6 plane)" in proc.stderr
 
 
+def test_the_deviation_both_ways_per_named_face(sharp_box):
+    """The report's per-face deviations carry the faces' own names, and the summary shows both directions: a face
+    that reaches far from the mesh shows only from the shape's side (every mesh point lies near some face)."""
+    d, proc = sharp_box
+    report = json.loads((d / "box.json").read_text())
+    dev = report["deviation"]
+    assert sorted(f["name"] for f in dev["faces"]) == sorted(f["name"] for f in report["faces"])
+    # Exact planes on an exact mesh: round-off both ways, on every face.
+    assert dev["shape_to_mesh"]["max"] < 1e-9 * report["mesh"]["diagonal"]
+    assert all(f["shape_to_mesh_max"] < 1e-9 * report["mesh"]["diagonal"] for f in dev["faces"])
+    assert "deviation mesh→shape: max" in proc.stderr
+    assert "deviation shape→mesh: max" in proc.stderr
+
+
+def test_summary_names_the_face_farthest_from_the_mesh():
+    from recon._cli.convert import summary
+
+    stats = {"max": 1.0, "max_pct": 1.0, "p95": 0.5, "p95_pct": 0.5, "rms": 0.2, "rms_pct": 0.2}
+    report = {"validity": {"ok": True, "shape_type": "solid", "valid": True, "closed": True, "free_edges": 0,
+                           "volume": 1.0},
+              "faces_by_type": {"plane": 2}, "n_faces": 2, "seconds": {"load": 0.1}, "warnings": [],
+              "deviation": {"diagonal": 100.0, "mesh_to_shape": stats, "shape_to_mesh": {**stats, "max": 80.0},
+                            "faces": [{"name": "patch_0", "shape_to_mesh_max": 0.3},
+                                      {"name": "patch_1", "shape_to_mesh_max": 80.0}]}}
+    back = [ln for ln in summary(report).splitlines() if ln.startswith("deviation shape→mesh: ")]
+    assert len(back) == 1 and back[0].startswith("deviation shape→mesh: max 80 ") and back[0].endswith("farthest: patch_1")
+
+
 def test_step_round_trip_and_face_names(sharp_box):
     d, _ = sharp_box
     from build123d import import_step
@@ -197,6 +225,7 @@ def test_real_mesh_converts_to_valid_solids(name):
         (lambda d: ("convert", d / "empty.stl", d / "o.step"), "empty"),
         (lambda d: ("convert", d / "cube.stl", d / "o.iges"), "unknown extension"),
         (lambda d: ("convert", d / "cube.stl", d / "o.step", "--tolerance", "-1"), "--tolerance"),
+        (lambda d: ("convert", d / "cube.stl", d / "o.step", "--jobs", "0"), "--jobs"),
         (lambda d: ("convert", d / "cube.stl", d / "nofolder" / "o.step"), "does not exist"),
     ],
 )

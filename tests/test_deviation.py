@@ -317,3 +317,72 @@ def test_signed_distance_in_chunks_equals_one_batch(monkeypatch):
     for a, b in zip(whole, chunked):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_allclose(chunked[0], box_sdf(p, np.array([5.0, 10.0, 15.0])), atol=1e-12)
+
+
+def test_model_deviation_of_shifted_box_and_grown_sphere():
+    """Analytic answers: a 10 mm box against itself moved 0.1 along x lies 0.1 from it on the two x faces (a third
+    of its area, so the p95 too) and nowhere farther; a sphere of radius 10 lies 0.05 from one of 10.05 everywhere,
+    both ways. A shape in other units is taken into the reference's by ``shape_scale``."""
+    import build123d as bd
+
+    from recon.deviation import model_deviation
+
+    box = bd.Box(10, 10, 10)
+    moved = model_deviation(box, bd.Pos(0.1, 0, 0) * bd.Box(10, 10, 10), samples=4000)
+    for stats in (moved.to_reference, moved.from_reference):
+        assert stats.max == pytest.approx(0.1, rel=1e-9)
+        assert stats.p95 == pytest.approx(0.1, rel=1e-9)
+        assert 0.1 / 3 - 0.01 < stats.mean < 0.1 / 3 + 0.01
+    assert model_deviation(box, box, samples=2000).to_reference.max < 1e-12
+    grown = model_deviation(bd.Sphere(10), bd.Sphere(10.05), samples=4000)
+    for stats in (grown.to_reference, grown.from_reference):
+        assert stats.max == pytest.approx(0.05, rel=1e-9) and stats.rms == pytest.approx(0.05, rel=1e-9)
+    assert grown.to_json()["to_reference"]["max_pct"] == pytest.approx(100 * 0.05 / grown.to_reference.diagonal)
+    # the box in cm against the moved box in mm: the same distances, in mm
+    cm = model_deviation(bd.Box(1, 1, 1), bd.Pos(0.1, 0, 0) * bd.Box(10, 10, 10), samples=4000, shape_scale=10.0)
+    assert cm.to_reference.max == pytest.approx(0.1, rel=1e-9) and cm.from_reference.max == pytest.approx(0.1, rel=1e-9)
+
+
+def test_distance_does_not_depend_on_an_earlier_tessellation():
+    """BRepMesh refines a triangulation a shape already has instead of starting afresh: measured on the shape
+    itself, a part meshed finely before (here at 0.001) gave 4x the nodes of a fresh one, and a B-rep with a
+    face BRepMesh cannot mesh took minutes and gigabytes. BrepDistance measures a copy without it."""
+    import build123d as bd
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+
+    from recon.brep._distance import BrepDistance
+
+    fresh = BrepDistance((bd.Box(20, 20, 10) - bd.Cylinder(4, 10)).wrapped)
+    part = bd.Box(20, 20, 10) - bd.Cylinder(4, 10)
+    BRepMesh_IncrementalMesh(part.wrapped, 0.001, False, 0.1, True)
+    again = BrepDistance(part.wrapped)
+    assert [len(f.nodes) for f in again._faces] == [len(f.nodes) for f in fresh._faces]
+    p = np.array([[0.0, 0.0, 8.0], [3.0, 0.0, 0.0], [12.0, 3.0, 1.0]])
+    assert np.allclose(again.signed_distance(p)[0], fresh.signed_distance(p)[0], atol=1e-12)
+
+
+
+
+def test_names_for_a_shape_follow_its_face_order(tmp_path):
+    """A box moved 0.1 along +z against its own dense mesh: the points of its top and bottom lie 0.1 from the
+    moved top and bottom faces, the points of its sides slide along the sides (distance 0). The names given in
+    ``faces_of`` order carry those figures."""
+    box = bd.Box(10, 20, 30)
+    mesh = trimesh.creation.box(extents=(10, 20, 30)).subdivide_to_size(1.0)
+    moved = box.moved(bd.Location((0, 0, 0.1)))
+    z = [bd.Face(face).center().Z for face in faces_of(moved.wrapped)]
+    names = ["top" if c > 15 else "bottom" if c < -14 else f"side_{i}" for i, c in enumerate(z)]
+    rep = deviation(mesh.vertices, mesh.faces, moved, samples=2000, names=names)
+    assert [fd.name for fd in rep.faces] == names
+    by_name = {fd.name: fd for fd in rep.faces}
+    for end in ("top", "bottom"):
+        assert by_name[end].rms == pytest.approx(0.1, abs=1e-6)
+    for fd in rep.faces:
+        if fd.name.startswith("side_"):
+            assert fd.rms < 0.02
+    with pytest.raises(InputError, match="5 names for a shape of 6 faces"):
+        deviation(mesh.vertices, mesh.faces, moved, names=names[:5])
+    step = tmp_path / "box.step"
+    write_named_step(box.wrapped, [None] * 6, step)
+    with pytest.raises(InputError, match="read from it"):
+        deviation(mesh.vertices, mesh.faces, step, names=names)

@@ -29,6 +29,7 @@ def add_parser(sub):
     p.add_argument("--scale", type=float, metavar="S", help="feature scale of the decomposition in mesh units "
                    "(default: from the sampling and the noise)")
     p.add_argument("--no-deviation", action="store_true", help="skip measuring the deviation (faster)")
+    p.add_argument("--jobs", type=int, metavar="N", help="processes to use (default: the cores available)")
     p.set_defaults(func=run)
     return p
 
@@ -60,11 +61,18 @@ def summary(report: dict) -> str:
     ]
     dev = report.get("deviation")
     if dev:
-        m = dev["mesh_to_shape"]
-        lines.append(
-            f"deviation mesh→shape: max {m['max']:.4g} ({m['max_pct']:.3f}%), p95 {m['p95']:.4g} "
-            f"({m['p95_pct']:.3f}%), rms {m['rms']:.4g} ({m['rms_pct']:.3f}%) of diagonal {dev['diagonal']:.4g}"
-        )
+        for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")):
+            m = dev[key]
+            line = (f"deviation {way}: max {m['max']:.4g} ({m['max_pct']:.3f}%), p95 {m['p95']:.4g} "
+                    f"({m['p95_pct']:.3f}%), rms {m['rms']:.4g} ({m['rms_pct']:.3f}%) of diagonal {dev['diagonal']:.4g}")
+            if key == "shape_to_mesh":
+                # Where the shape leaves the mesh: a face that reaches far out shows here only (mesh→shape
+                # measures from the mesh's points, which all lie near some face).
+                far = max((f for f in dev.get("faces", []) if f.get("shape_to_mesh_max") is not None),
+                          key=lambda f: f["shape_to_mesh_max"], default=None)
+                if far is not None:
+                    line += f"; farthest: {far['name']}"
+            lines.append(line)
     secs = report["seconds"]
     lines.append("time: " + ", ".join(f"{k} {v:.2f} s" for k, v in secs.items()) + f"; total {sum(secs.values()):.2f} s")
     warnings = report.get("warnings", [])
@@ -98,6 +106,8 @@ def run(args) -> int:
         raise InputError(f"--tolerance must be a positive length, got {args.tolerance}")
     if args.scale is not None and not args.scale > 0:
         raise InputError(f"--scale must be a positive length, got {args.scale}")
+    if args.jobs is not None and args.jobs < 1:
+        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
     for opt in (args.out, args.report, args.preview):
         if opt and not Path(opt).parent.exists():
             raise InputError(f"cannot write {opt}: folder {Path(opt).parent} does not exist")
@@ -119,6 +129,7 @@ def run(args) -> int:
         scale=args.scale,
         deviation=not args.no_deviation,
         progress=_Progress(sys.stderr) if tty else None,
+        jobs=args.jobs,
     )
     write_shape(out, result.brep, name=out.stem)
     if args.report:

@@ -32,6 +32,7 @@ from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
 from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
 from OCP.BRepBndLib import BRepBndLib
+from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
 from OCP.BRepClass import BRepClass_FaceClassifier
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools, BRepTools_WireExplorer
@@ -117,7 +118,8 @@ class BrepDistance:
     Attributes
     ----------
     faces : list of TopoDS_Face
-        In :func:`recon.brep._step_read.faces_of` order; face indices refer to it.
+        In :func:`recon.brep._step_read.faces_of` order; face indices refer to it. Faces of a copy of ``shape``
+        (the same geometry, in the same order).
     types : tuple of str
         Surface type of each face (``"plane"``, ``"cylinder"``, ..., ``"bspline"``).
     """
@@ -125,6 +127,11 @@ class BrepDistance:
     def __init__(self, shape: TopoDS_Shape, *, deflection: float | None = None, rng=None):
         if not isinstance(shape, TopoDS_Shape) or shape.IsNull():
             raise InputError("shape: expected a non-null TopoDS_Shape")
+        # Measured on a copy without the shape's triangulation: BRepMesh refines an existing one instead of
+        # starting afresh, so the result depended on what had meshed the shape before, and on a B-rep with a
+        # face it cannot mesh (pocket noisy20's, after the deviation stage had meshed it) re-meshing took
+        # 270 s and 0.8-3.9 GB, where a fresh copy takes 0.4 s and 10 MB.
+        shape = BRepBuilderAPI_Copy(shape, True, False).Shape()
         self.faces = faces_of(shape)
         if not self.faces:
             raise InputError("shape: expected a shape with at least one face")
@@ -636,8 +643,10 @@ class BrepDistance:
         sign = np.sign(np.einsum("ij,ij->i", p - foot, normal))
         return np.where(sign < 0, -best, best), nearest, foot
 
-    def surface_samples(self, count: int, *, rng=None):
-        """Points exactly on the faces: every tessellation node plus ``count`` area-uniform points.
+    def surface_samples(self, count: int, *, rng=None, nodes: bool = True):
+        """Points exactly on the faces: every tessellation node (unless ``nodes`` is False) plus ``count``
+        area-uniform points. The nodes crowd at edges and on curved faces: without them the points are an
+        area-uniform sample (their percentiles are shares of the area).
 
         Returns
         -------
@@ -649,8 +658,9 @@ class BrepDistance:
         total = float(sum(a.sum() for a in areas))
         pts, fid = [], []
         for fd, area in zip(self._faces, areas):
-            pts.append(fd.nodes)
-            fid.append(np.full(len(fd.nodes), fd.index))
+            if nodes:
+                pts.append(fd.nodes)
+                fid.append(np.full(len(fd.nodes), fd.index))
             k = int(round(count * area.sum() / total)) if total > 0 else 0
             p, uv, _ = self._triangle_samples(fd, area, k, rng)
             if len(p):
