@@ -311,3 +311,46 @@ def test_two_processes_give_the_same_decomposition(part, variant, monkeypatch):
     ]
     assert np.array_equal(one.skeleton.vertices, two.skeleton.vertices)
     assert np.array_equal(one.skeleton.edges, two.skeleton.edges)
+
+
+def _dies(ctx, *args):
+    import os
+
+    os._exit(3)
+
+
+def _hangs(ctx, *args):
+    import time
+
+    time.sleep(60)
+
+
+def _fails(ctx, *args):
+    raise MemoryError("no room")
+
+
+@pytest.mark.parametrize("job", [_dies, _hangs, _fails], ids=["dies", "hangs", "fails"])
+def test_a_worker_that_dies_hangs_or_fails_changes_nothing(job, monkeypatch, caplog):
+    """The second process can never stall the decomposition nor change it: when it ends, gives no answer within
+    the timeout or fails a job, the parent does that work itself and goes on in one process."""
+    import time
+
+    from recon.decompose import _regions
+
+    if not _regions._Worker.available():
+        pytest.skip("no fork here")
+    fx = _fixture("plate_holes", "noisy20")
+    monkeypatch.setattr(_regions, "PARALLEL_MIN_TRIANGLES", 0)
+    one = decompose((fx.vertices, fx.faces), jobs=1)
+    monkeypatch.setattr(_regions, "WORKER_TIMEOUT", 0.5)
+    # the worker is forked after this: it runs the broken job for every job the parent sends
+    monkeypatch.setitem(_regions._JOBS, "grow", job)
+    monkeypatch.setitem(_regions._JOBS, "fits", job)
+    t = time.perf_counter()
+    two = decompose((fx.vertices, fx.faces), jobs=2)
+    assert time.perf_counter() - t < 30  # not the 60 s the hanging job sleeps
+    assert "second process stopped" in caplog.text
+    assert np.array_equal(one.labels, two.labels)
+    assert [(p.kind, p.sharp, tuple(p.neighbours)) for p in one.parts] == [
+        (p.kind, p.sharp, tuple(p.neighbours)) for p in two.parts
+    ]

@@ -412,7 +412,7 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         fi = _FitInput(ctx, core)
         fit = _seed_fit(ctx, fi, types)
         spec = None
-        if worker is not None and fit is not None and (max_seeds is None or seeds < max_seeds):
+        if worker is not None and worker.alive and fit is not None and (max_seeds is None or seeds < max_seeds):
             spec = _speculate(ctx, worker, order, pos, free, tried, core, fit, types)
         result = None if fit is None else _grow_one(ctx, core, fit, free, fi, memo)
         settle(core, result)
@@ -550,11 +550,12 @@ def _compete(ctx: _Ctx, label, fits: list, allowed, *, swap: bool = False, stric
 class _Speculation:
     """The seed growing in the worker, and what must hold for its result to be the sequential one."""
 
-    def __init__(self, seed, pos: int, skipped: np.ndarray, pending):
-        self.seed, self.pos, self.skipped, self.pending = seed, pos, skipped, pending
+    def __init__(self, seed, pos: int, skipped: np.ndarray, worker: "_Worker"):
+        self.seed, self.pos, self.skipped, self.worker = seed, pos, skipped, worker
 
     def get(self):
-        return self.pending.get()
+        """The worker's ``(core, result, memo)``, or None when it gave none (see :meth:`_Worker.get`)."""
+        return self.worker.get()
 
 
 def _speculate(ctx: _Ctx, worker, order, pos, free, tried, core, fit, types) -> _Speculation | None:
@@ -574,7 +575,9 @@ def _speculate(ctx: _Ctx, worker, order, pos, free, tried, core, fit, types) -> 
                 k = int(idx[off[0]])
                 skipped.append(block[idx[: off[0]]])
                 seed = block[k]
-                return _Speculation(seed, pos + k + 1, np.concatenate(skipped), worker.submit(seed, free, types))
+                if not worker.submit("grow", seed, free, types):
+                    return None
+                return _Speculation(seed, pos + k + 1, np.concatenate(skipped), worker)
             skipped.append(block[idx])
         pos += len(block)
     return None
@@ -584,44 +587,74 @@ def _speculation_holds(spec: _Speculation, got, free, tried) -> bool:
     """Whether the worker's seed, grown on the masks from before the current seed grew, is what growing it after
     that one gives (``free``, ``tried``: the masks after it). It is when the seed is the next one in order now
     and neither its disc nor its region reach into what the current seed took: its growth then read only
-    triangles whose state did not change (one that would have joined it from there shows as an overlap)."""
+    triangles whose state did not change (one that would have joined it from there shows as an overlap).
+    ``got`` None (the worker gave no answer) never holds: the seed is then grown here, in its turn."""
+    if got is None:
+        return False
     core, result, _ = got
     if tried[spec.seed] or not free[spec.seed] or not tried[spec.skipped].all():
         return False
     return bool(free[core].all() and (result is None or free[result[0]].all()))
 
 
-#: The worker's copy of the growing context (set in the parent only while it forks).
-_FORKED_CTX = None
+#: How long the parent waits for the worker's answer to one job before it stops the worker and does the work
+#: itself (a worker that died answers at once: its end of the pipe closes). A job is one seed's growth or half a
+#: refinement pass's fits, the same work the parent does meanwhile: the largest, on the 1M box, take a few
+#: seconds; the whole 1M decomposition takes 23 s.
+WORKER_TIMEOUT = 120.0
 
 
-def _quiet_worker():
+def _grow_job(ctx: _Ctx, seed, free, types):
+    return _grow_seed(ctx, seed, free, types)
+
+
+def _fits_job(ctx: _Ctx, jobs):
+    return [_fit(ctx, faces, (kind,), polish=True) for faces, kind in jobs]
+
+
+#: What the worker can be asked to do: name -> function(ctx, *args).
+_JOBS = {"grow": _grow_job, "fits": _fits_job}
+
+
+def _serve(ctx: _Ctx, conn, parent_end) -> None:
+    """The worker's loop: a job ``(name, args)`` in, ``(True, result)`` or ``(False, why)`` out, until the
+    parent closes the pipe."""
     import signal
 
+    parent_end.close()
+    # Ctrl-C reaches the whole process group: the parent stops the worker (close), the worker stays quiet
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _remote_grow(seed, free, types):
-    return _grow_seed(_FORKED_CTX, seed, free, types)
-
-
-def _remote_fits(jobs):
-    return [_fit(_FORKED_CTX, faces, (kind,), polish=True) for faces, kind in jobs]
+    while True:
+        try:
+            name, args = conn.recv()
+        except (EOFError, OSError):
+            return
+        try:
+            out = (True, _JOBS[name](ctx, *args))
+        except Exception as err:  # the parent does the job itself, and meets the error there if it is one
+            out = (False, f"{type(err).__name__}: {err}")
+        conn.send(out)
 
 
 class _Worker:
-    """A second process for :func:`_seed_regions`, forked with the context (its arrays are shared, copy on write)."""
+    """A second process for :func:`_seed_regions` and :func:`_refit`, forked with the context (its arrays are
+    shared, copy on write), answering one job at a time over a pipe: :meth:`submit`, then :meth:`get`.
+
+    It can never stall the parent nor change the result: when it dies, fails a job or gives no answer within
+    :data:`WORKER_TIMEOUT`, :meth:`get` returns None, the worker is stopped for good, and the callers do the work
+    themselves, as with one process. (A process forked from a threaded one can deadlock in the child on a lock
+    another thread held at the fork; the timeout bounds what that costs.)
+    """
 
     def __init__(self, ctx: _Ctx):
-        global _FORKED_CTX
         import multiprocessing
 
-        _FORKED_CTX = ctx
-        try:
-            # Ctrl-C reaches the whole process group: the parent stops the worker (close), the worker stays quiet
-            self.pool = multiprocessing.get_context("fork").Pool(1, initializer=_quiet_worker)
-        finally:
-            _FORKED_CTX = None
+        mp = multiprocessing.get_context("fork")
+        self._conn, child = mp.Pipe()
+        self._proc = mp.Process(target=_serve, args=(ctx, child, self._conn), daemon=True, name="recon-decompose")
+        self._proc.start()
+        child.close()
+        self.alive = True
 
     @staticmethod
     def available() -> bool:
@@ -629,16 +662,56 @@ class _Worker:
         forked child, Windows cannot fork)."""
         return sys.platform.startswith("linux")
 
-    def submit(self, seed, free, types):
-        return self.pool.apply_async(_remote_grow, (seed, free.copy(), types))
+    @classmethod
+    def start(cls, ctx: _Ctx) -> "_Worker | None":
+        """A worker, or None where none can be had (then one process does all): not on Linux, inside a daemonic
+        process (which may not have children), or when the fork fails."""
+        if not cls.available():
+            return None
+        try:
+            return cls(ctx)
+        except (OSError, AssertionError) as err:  # multiprocessing asserts that a daemon has no children
+            log.warning("decomposition: no second process (%s), going on in one", err or type(err).__name__)
+            return None
 
-    def fits(self, jobs):
-        """``_fit(ctx, faces, (kind,), polish=True)`` of each (faces, kind) of ``jobs``, there."""
-        return self.pool.apply_async(_remote_fits, (jobs,))
+    def submit(self, name: str, *args) -> bool:
+        """Send a job of :data:`_JOBS`; False when the worker is gone (nothing was sent)."""
+        if not self.alive:
+            return False
+        try:
+            self._conn.send((name, args))
+        except (OSError, ValueError) as err:
+            self._stop(f"cannot reach it ({err})")
+            return False
+        return True
 
-    def close(self):
-        self.pool.terminate()
-        self.pool.join()
+    def get(self):
+        """The answer to the job submitted last, or None (the caller then does it itself)."""
+        if not self.alive:
+            return None
+        try:
+            if not self._conn.poll(WORKER_TIMEOUT):
+                self._stop(f"no answer in {WORKER_TIMEOUT:g} s")
+                return None
+            ok, value = self._conn.recv()
+        except (EOFError, OSError):
+            self._stop(f"it ended (exit code {self._proc.exitcode})")
+            return None
+        if not ok:
+            self._stop(f"a job failed: {value}")
+            return None
+        return value
+
+    def _stop(self, why: str) -> None:
+        log.warning("decomposition: second process stopped, going on in one: %s", why)
+        self.close()
+
+    def close(self) -> None:
+        self.alive = False
+        self._conn.close()
+        if self._proc.is_alive():
+            self._proc.kill()
+        self._proc.join()
 
 
 def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -> list:
@@ -665,7 +738,7 @@ def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -
                 todo.append((r, faces, fit.type, key))
     worker = getattr(ctx, "worker", None)
     there = []
-    if worker is not None and len(todo) > 1:
+    if worker is not None and worker.alive and len(todo) > 1:
         # the larger half of the work to the worker, by a greedy split on the points each fit runs on
         load = [0, 0]
         for item in sorted(todo, key=lambda t: -min(len(t[1]), 2 * MAX_FIT_POINTS)):
@@ -675,10 +748,14 @@ def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -
                 there.append(item)
         moved = {id(t) for t in there}
         todo = [t for t in todo if id(t) not in moved]
-        pending = worker.fits([(faces, kind) for _, faces, kind, _ in there])
+        if not worker.submit("fits", [(faces, kind) for _, faces, kind, _ in there]):
+            todo, there = todo + there, []
     done = [(t, _fit(ctx, t[1], (t[2],), polish=True)) for t in todo]
     if there:
-        done += list(zip(there, pending.get()))
+        got = worker.get()
+        if got is None:  # the worker gave no answer: its share here, in the same order
+            got = [_fit(ctx, t[1], (t[2],), polish=True) for t in there]
+        done += list(zip(there, got))
     for (r, _, _, key), new in done:
         if key is not None:
             memo[key] = new
@@ -1037,7 +1114,7 @@ def fitted_regions(
         tolerance = _noise_tolerance(ctx, comp_faces, noise, diag)
         ctx.tol = tolerance
     # the second process of _seed_regions, forked now that the context is complete (its tolerance is set)
-    ctx.worker = _Worker(ctx) if jobs > 1 and m >= PARALLEL_MIN_TRIANGLES and _Worker.available() else None
+    ctx.worker = _Worker.start(ctx) if jobs > 1 and m >= PARALLEL_MIN_TRIANGLES else None
     try:
         # fits of face sets (by type) that step 3's refits would repeat: a region that did not change since its last fit
         memo: dict = {}
