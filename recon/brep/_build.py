@@ -555,6 +555,13 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
     tolerances = [_tolerance(s) for s in before]
     try:
         fix.Perform()
+        # A wire that crosses itself on the surface is cut into loops and the face split into pieces
+        # (ShapeFix_Face's FixLoopWire / FixSplitFace); fix.Face() is one of them, the others are lost with
+        # their edges, which the neighbours still use (crank: 5 faces kept 0.01-50 % of their part's area, 27
+        # free edges). Such a face failed on its surface: its fallbacks follow.
+        pieces = _count(fix.Result(), TopAbs_FACE)
+        if pieces > 1:
+            raise BrepError(f"face on its surface was split into {pieces} pieces (its boundary crosses itself)")
         face = TopoDS.Face_s(local.Apply(fix.Face()))
         area = _area(face)
         if not area > 0:
