@@ -297,6 +297,86 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
     return labels, fits
 
 
+#: Bands of one round surface (:func:`merge_round_bands`): cylinders (or a cylinder and a sphere) whose radii agree
+#: within BAND_RADIUS_SLACK tolerances, whose axes are more than BAND_AXIS_ANGLE apart and pass within
+#: BAND_CENTRE_SHARE of the radius of each other (of the sphere's centre). Crank's ball ends: radii 0.0516-0.0527
+#: (0.3-0.9 tolerances apart), axes 48-52° apart and 0.3-2.7 tolerances from each other, the sphere's centre
+#: 0.29-0.30 × the radius from the cylinders' axes.
+BAND_RADIUS_SLACK = 2.0
+BAND_CENTRE_SHARE = 0.35
+BAND_AXIS_ANGLE = np.deg2rad(10.0)
+
+
+def merge_round_bands(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float) -> np.ndarray:
+    """Merge neighbouring cylinder (and sphere) faces that are bands of one doubly curved surface into one face.
+
+    A coarse tessellation of a round end (crank: two ball ends of radius 0.052 in long slivers) decomposes into
+    bands that each fit a cylinder within tolerance, of one radius, their axes crossing at about 50°, and a
+    sphere of that radius beside them: no analytic surface holds their union (a sphere: RMS 2×, max 5× the
+    tolerance; :func:`merge_same_surface` tries the pieces' own type only), a B-spline does (max 0.29× and
+    0.38×). Kept apart, the edges between them are where two cylinders cross, a wandering curve across bands
+    0.02 wide, and the faces' boundaries crossed themselves on their surfaces (ShapeFix split them). Groups of
+    three or more such faces are merged, only when the union's own fit (any type) is within tolerance.
+    Returns ``labels`` itself when nothing merged.
+    """
+    def centre(f):
+        if f.type == "cylinder":
+            return np.asarray(f.params["axis_point"], float), np.asarray(f.params["axis_dir"], float)
+        return np.asarray(f.params["center"], float), None
+
+    def same_round(f, g):
+        if not (f and g and f.type in ("cylinder", "sphere") and g.type in ("cylinder", "sphere")):
+            return False
+        if f.type == "sphere" and g.type == "sphere":
+            return False  # (merge_same_surface's case)
+        if abs(float(f.params["radius"]) - float(g.params["radius"])) > BAND_RADIUS_SLACK * tolerance:
+            return False
+        (pf, df), (pg, dg) = centre(f), centre(g)
+        if df is not None and dg is not None:
+            if abs(float(df @ dg)) > np.cos(BAND_AXIS_ANGLE):
+                return False  # parallel axes: coaxial pieces are merge_same_surface's
+            n = np.cross(df, dg)
+            dist = abs(float((pg - pf) @ n)) / np.linalg.norm(n)
+        else:
+            c, (q, d) = (pf, (pg, dg)) if df is None else (pg, (pf, df))
+            r = c - q
+            dist = float(np.linalg.norm(r - (r @ d) * d))
+        return dist <= BAND_CENTRE_SHARE * float(f.params["radius"])
+
+    pairs = _faces_adjacency(mesh)
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    diff = a != b
+    key = np.unique(np.sort(np.column_stack([a[diff], b[diff]]), axis=1), axis=0)
+    parent = {}
+
+    def root(x):
+        while parent.get(x, x) != x:
+            x = parent[x]
+        return x
+
+    for p, q in key.tolist():
+        if same_round(fits.get(p), fits.get(q)):
+            parent[root(q)] = root(p)
+    groups: dict[int, list[int]] = {}
+    for x in list(parent):
+        groups.setdefault(root(x), []).append(x)
+    out = labels
+    vn = _memo_vertex_normals(mesh)
+    for r, members in groups.items():
+        members = sorted(set(members) | {r})
+        if len(members) < 3:
+            continue  # two bands: a fillet's cylinder and its neighbour cross at an angle too
+        tris = np.flatnonzero(np.isin(labels, members))
+        fit = _fit_members(mesh, tris, vn, tolerance, members[0], None)
+        if not fit:
+            continue
+        if out is labels:
+            out = labels.copy()
+        out[tris] = members[0]
+        log.info("faces %s: bands of one round surface, merged (%s)", members, fit.type)
+    return out
+
+
 def _misfits(fit: SurfaceFit, pts: np.ndarray) -> bool:
     """Whether ``fit`` is a compromise on the points ``pts``: their robust residual scale is above
     :data:`recon.fit._select.MISFIT_SCALE` × the noise (never on a noise-free mesh, where the residuals are the
@@ -1100,6 +1180,10 @@ def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[n
         dissolved = grow_faces(mesh, labels, fits, tolerance=tolerance, dissolve=True)
         if dissolved is not labels:
             labels = _tidy(mesh, dissolved, tolerance=tolerance)
+            fits = _fit_parts(mesh, labels, tolerance=tolerance)
+        banded = merge_round_bands(mesh, labels, fits, tolerance=tolerance)
+        if banded is not labels:
+            labels = _tidy(mesh, banded, tolerance=tolerance)
             fits = _fit_parts(mesh, labels, tolerance=tolerance)
         cut = _cut_unbounded(mesh, labels, tolerance=tolerance)
         if cut is not labels:
