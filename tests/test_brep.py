@@ -534,3 +534,78 @@ def test_filling_through_every_sample_only_where_every_third_is_off(monkeypatch)
     face, _, status, msg = _build._fallback_face([], [], pts[:10], pts[:10], None, precision=1e-3, timeout=5.0,
                                                  expected_area=1.0)
     assert calls == [10] and (face, status, msg) == (None, "failed", "no face from 10")
+
+
+def test_a_boundary_that_crosses_itself_is_no_face_on_its_surface():
+    """A bowtie on a plane: A(0,0) → B(1,1) → C(1,0) → D(0,1) → A crosses itself at (½, ½). ShapeFix cuts it into
+    its two triangles (¼ each) and hands back one: that face held half the part's area, and the other half's
+    edges were lost to the neighbours that share them (crank: 27 free edges). It is a failure, so that the
+    part's fallbacks run."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
+    from OCP.gp import gp_Pnt
+    from OCP.ShapeBuild import ShapeBuild_ReShape
+
+    from recon.brep import _build
+    from recon.brep._surfaces import surface_model
+    from recon.errors import BrepError
+    from recon.fit import SurfaceFit
+
+    plane = SurfaceFit("plane", {"origin": [0.5, 0.5, 0.0], "normal": [0.0, 0.0, 1.0]},
+                       {"max": 0.0, "rms": 0.0, "p99": 0.0}, 4)
+    corners = [BRepBuilderAPI_MakeVertex(gp_Pnt(*p)).Vertex() for p in [(0, 0, 0), (1, 1, 0), (1, 0, 0), (0, 1, 0)]]
+    edges = [BRepBuilderAPI_MakeEdge(corners[i], corners[(i + 1) % 4]).Edge() for i in range(4)]
+    with pytest.raises(BrepError, match="split into 2 pieces"):
+        _build._face_on_surface(surface_model(plane), [np.array([1, 2, 3, 4])], edges, 1, ShapeBuild_ReShape(),
+                                precision=1e-3)
+
+
+def test_a_band_round_a_cylinder_gets_its_seam_at_the_middle_of_its_longest_edge():
+    """A band of a unit cylinder (z = 0 to 1) bounded by two loops that each wind once round the axis: the bottom
+    one of arcs 0°–250° and 250°–360°, the top one of two half circles. The retry for such a face puts the seam
+    through the middle of the edge that turns furthest round the axis (the 250° arc, at 125°): that edge is
+    split there in two arcs of 125°, and the surface's u = 0 turned to the split point."""
+    from types import SimpleNamespace
+
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
+    from OCP.GC import GC_MakeArcOfCircle
+    from OCP.gp import gp_Pnt
+    from OCP.ShapeBuild import ShapeBuild_ReShape
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from recon.brep import _build
+    from recon.brep._surfaces import surface_model
+    from recon.fit import SurfaceFit
+
+    def at(deg, z):
+        a = np.deg2rad(deg)
+        return np.array([np.cos(a), np.sin(a), z])
+
+    arcs = [(0, 250, 0.0), (250, 360, 0.0), (0, 180, 1.0), (180, 360, 1.0)]
+    vertices = {key: BRepBuilderAPI_MakeVertex(gp_Pnt(*at(*key))).Vertex() for key in [(0, 0.0), (250, 0.0),
+                                                                                         (0, 1.0), (180, 1.0)]}
+    edges, coords = [], []
+    for a, b, z in arcs:
+        curve = GC_MakeArcOfCircle(gp_Pnt(*at(a, z)), gp_Pnt(*at((a + b) / 2, z)), gp_Pnt(*at(b, z))).Value()
+        edges.append(BRepBuilderAPI_MakeEdge(curve, vertices[(a, z)], vertices[(b % 360, z)]).Edge())
+        coords.append(np.array([at(t, z) for t in np.linspace(a, b, 60)]))
+    geo = SimpleNamespace(coords=np.concatenate(coords), offsets=np.arange(0, 61 * 4, 60)[:5])
+    cylinder = SurfaceFit("cylinder", {"axis_point": [0.0, 0.0, 0.0], "axis_dir": [0.0, 0.0, 1.0], "radius": 1.0},
+                          {"max": 0.0, "rms": 0.0, "p99": 0.0}, 100)
+    split = _build._seam_split(surface_model(cylinder), [np.array([1, 2]), np.array([3, 4])], edges, geo,
+                               ShapeBuild_ReShape())
+    assert split is not None
+    turned, edge, pieces = split
+    assert edge.IsSame(edges[0])
+    ends = []
+    exp = TopExp_Explorer(pieces, TopAbs_EDGE)
+    while exp.More():
+        first, last = BRep_Tool.Range_s(TopoDS.Edge_s(exp.Current()))
+        ends.append(abs(last - first))
+        exp.Next()
+    np.testing.assert_allclose(ends, [np.deg2rad(125.0)] * 2, atol=np.deg2rad(3.0))  # the polyline's 60 points
+    u0 = turned.geom.Value(0.0, 0.0)
+    assert np.rad2deg(np.arctan2(u0.Y(), u0.X())) == pytest.approx(125.0, abs=3.0)
+    assert turned.radius == pytest.approx(1.0)

@@ -489,3 +489,56 @@ def test_cad_export_with_two_triangle_faces_gives_back_its_faces(tmp_path):
     assert rep["n_faces"] == len(shape.faces()) == 11
     assert Counter(rep["faces_by_type"]) == Counter({"plane": 10, "cylinder": 1})
     assert rep["deviation"]["mesh_to_shape"]["p95_pct"] < 1e-6
+
+
+def _ball_in_three_lunes():
+    """A unit sphere (exact vertices) cut into three lunes by longitude, each "fitted" as a cylinder of its radius
+    through the centre, the axes 60° apart in the equator plane (a round end's bands, as on crank)."""
+    from recon.fit import SurfaceFit
+    from recon.mesh import clean_mesh
+
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=1.0)
+    mesh = clean_mesh(ball.vertices, ball.faces)
+    c = mesh.face_centroids
+    labels = (np.floor((np.arctan2(c[:, 1], c[:, 0]) + np.pi) / (2 * np.pi / 3)).astype(np.int64)) % 3
+    exact = {"max": 0.0, "rms": 0.0, "p99": 0.0}
+
+    def cylinder(angle, radius=1.0):
+        axis = [float(np.cos(angle)), float(np.sin(angle)), 0.0]
+        return SurfaceFit("cylinder", {"axis_point": [0.0, 0.0, 0.0], "axis_dir": axis, "radius": radius}, exact, 100)
+
+    return mesh, labels, cylinder
+
+
+def test_bands_of_one_ball_fitted_as_crossing_cylinders_become_one_face():
+    """Three lunes of a sphere, each a cylinder of the sphere's radius whose axis crosses the others at 60° through
+    the centre: one round surface in bands. Merged, because a sphere fits the union (its vertices lie on it)."""
+    from recon.pipeline import merge_round_bands
+
+    mesh, labels, cylinder = _ball_in_three_lunes()
+    assert np.bincount(labels).min() > 50
+    fits = {k: cylinder(np.deg2rad(60.0 * k)) for k in range(3)}
+    merged = merge_round_bands(mesh, labels, fits, tolerance=1e-3)
+    assert np.unique(merged).tolist() == [0]
+
+
+@pytest.mark.parametrize("case", ["parallel axes", "radii 5 tolerances apart", "axes far apart", "two bands"])
+def test_bands_that_are_not_one_round_surface_stay_apart(case):
+    """Each condition of a round surface in bands alone unmet: coaxial pieces (merge_same_surface's case), other
+    radii, axes that miss each other by far more than the radius' share, or only two bands (a fillet and its
+    neighbour cross at an angle too). Nothing merges: the labels come back unchanged, as the same array."""
+    from recon.pipeline import merge_round_bands
+
+    mesh, labels, cylinder = _ball_in_three_lunes()
+    fits = {k: cylinder(np.deg2rad(60.0 * k)) for k in range(3)}
+    if case == "parallel axes":
+        fits = {k: cylinder(0.0) for k in range(3)}
+    elif case == "radii 5 tolerances apart":
+        fits[1] = cylinder(np.deg2rad(60.0), radius=1.005)
+    elif case == "axes far apart":
+        f = fits[1]
+        fits[1] = type(f)(f.type, {**f.params, "axis_point": [0.0, 0.0, 0.5]}, f.deviation, f.n_points)
+    else:
+        labels = np.where(labels == 2, 1, labels)
+        fits = {0: fits[0], 1: fits[1]}
+    assert merge_round_bands(mesh, labels, fits, tolerance=1e-3) is labels
