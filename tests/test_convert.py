@@ -542,3 +542,25 @@ def test_bands_that_are_not_one_round_surface_stay_apart(case):
         labels = np.where(labels == 2, 1, labels)
         fits = {0: fits[0], 1: fits[1]}
     assert merge_round_bands(mesh, labels, fits, tolerance=1e-3) is labels
+
+
+def test_a_filleted_box_frame_is_not_one_ball():
+    """A box corner's three fillet cylinders and its sphere meet in one point (the corner's centre): one ball's
+    bands by their geometry (the union's fit decides). Chained with the next corner's they do not: the box's
+    12 fillets and 8 corners are one group by pairs, and fitting their union cost the 100k box 5 s for nothing."""
+    from recon.fit import SurfaceFit
+    from recon.pipeline import _one_centre
+
+    exact = {"max": 0.0, "rms": 0.0, "p99": 0.0}
+    a, b, c, r = 10.0, 5.0, 2.0, 1.0
+
+    def cylinder(point, axis):
+        return SurfaceFit("cylinder", {"axis_point": point, "axis_dir": axis, "radius": r}, exact, 100)
+
+    def sphere(centre):
+        return SurfaceFit("sphere", {"center": centre, "radius": r}, exact, 100)
+
+    corner = [cylinder([0, b, c], [1, 0, 0]), cylinder([a, 0, c], [0, 1, 0]), cylinder([a, b, 0], [0, 0, 1]),
+              sphere([a, b, c])]
+    assert _one_centre(corner)
+    assert not _one_centre(corner + [cylinder([a, -b, 0], [0, 0, 1]), sphere([a, -b, c])])
