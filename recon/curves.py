@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import InputError
+from .mesh._topology import unique_rows
 
 __all__ = [
     "CurveNetwork",
@@ -214,8 +215,9 @@ def curve_network(vertices, faces, labels) -> CurveNetwork:
     open_v = np.concatenate([bu[open_edge], bv[open_edge]])
     vert_lab = np.concatenate([np.stack([faces.reshape(-1), np.repeat(labels, 3)], 1),
                                np.stack([open_v, np.full(len(open_v), OUTSIDE)], 1)])
-    vert_lab = np.unique(vert_lab, axis=0)
-    n_parts_at = np.bincount(vert_lab[:, 0], minlength=n)
+    # distinct (vertex, part) pairs, packed into one integer each (the outside, -1, shifted to 0)
+    first, _ = unique_rows(vert_lab - [0, OUTSIDE], max(n, int(labels.max(initial=0)) + 2))
+    n_parts_at = np.bincount(vert_lab[first, 0], minlength=n)
     degree = np.bincount(np.concatenate([bu, bv]), minlength=n)
     is_node = ((n_parts_at >= 3) | ((degree != 2) & (degree > 0))) & (degree > 0)
 
