@@ -251,6 +251,17 @@ def _tidy(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> 
     return remap[labels]
 
 
+def _vertices_of(F: np.ndarray, tris, n: int) -> np.ndarray:
+    """``np.unique(F[tris])``: the sorted ids (of ``n`` vertices) of the triangles ``tris``. By a mask over the
+    vertices when the corners are not few beside them (no sort: the fit stage asks this of large faces many times)."""
+    idx = F[tris].ravel()
+    if len(idx) * 32 < n:
+        return np.unique(idx)
+    mask = np.zeros(n, bool)
+    mask[idx] = True
+    return np.flatnonzero(mask)
+
+
 def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float):
     """Merge neighbouring faces that one analytic surface covers within tolerance.
 
@@ -286,7 +297,7 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
             if fp.type != fq.type and not _probe_fits(mesh, members, tolerance, upto):
                 continue
             fit = _fit_members(mesh, members, _memo_vertex_normals(mesh), tolerance, p, upto)
-            if fit and not _misfits(fit, mesh.vertices[np.unique(mesh.faces[members])]):
+            if fit and not _misfits(fit, mesh.vertices[_vertices_of(mesh.faces, members, len(mesh.vertices))]):
                 labels[labels == q] = p
                 fits[p] = fit
                 del fits[q]
@@ -435,7 +446,7 @@ def _probe_fits(mesh: Mesh, tris: np.ndarray, tolerance: float, upto: str) -> bo
     key = ("probe", float(tolerance), upto, hashlib.sha1(np.asarray(tris, dtype=np.int64).tobytes()).digest())
     if memo is not None and key in memo:
         return memo[key]
-    ids = np.unique(mesh.faces[tris])
+    ids = _vertices_of(mesh.faces, tris, len(mesh.vertices))
     vn = _memo_vertex_normals(mesh)
     ids = ids[:: max(1, len(ids) // PROBE_POINTS)]  # a closed form needs no more points to be judged
     pts, nrm = mesh.vertices[ids], vn[ids]
@@ -454,7 +465,7 @@ def _grown_inside(mesh: Mesh, tris: np.ndarray, *, tolerance: float, min_share: 
     """
     V, F = mesh.vertices, mesh.faces
     total = float(mesh.face_areas[tris].sum())
-    if len(np.unique(F[tris])) < 2 * MIN_PART_VERTICES:
+    if len(_vertices_of(F, tris, len(V))) < 2 * MIN_PART_VERTICES:
         return total, []
     memo = _FIT_MEMO.get()
     # The fit stage asks again for every face each round (trim, grow, trim ...), and most faces have not
@@ -582,7 +593,7 @@ def _planar_pieces(mesh: Mesh, tris: np.ndarray, pairs: np.ndarray, surfaces, to
     face the fit stage judges whole) within ``tolerance``, and each of ``surfaces`` (the fits around them) leaves
     some vertex farther than ``tolerance`` away — the test :func:`_small_faces` keeps a small piece by."""
     V, F = mesh.vertices, mesh.faces
-    if len(np.unique(F[tris])) < MIN_CORNER_VERTICES or any(s.type in _CURVED for s in surfaces):
+    if len(_vertices_of(F, tris, len(V))) < MIN_CORNER_VERTICES or any(s.type in _CURVED for s in surfaces):
         return []  # next to a curved face a small flat piece is what is left of a blend (`_small_faces`)
     inside = np.isin(pairs[:, 0], tris) & np.isin(pairs[:, 1], tris)
     local = np.full(len(F), -1, dtype=np.int64)
@@ -593,7 +604,7 @@ def _planar_pieces(mesh: Mesh, tris: np.ndarray, pairs: np.ndarray, surfaces, to
     out = []
     for c in np.unique(comp):
         piece = tris[comp == c]
-        ids = np.unique(F[piece])
+        ids = _vertices_of(F, piece, len(V))
         if not MIN_CORNER_VERTICES <= len(ids) < MIN_PART_VERTICES:
             continue
         plane = fit_plane(V[ids])
@@ -651,7 +662,8 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     analytic = np.array(sorted(q for q, f in fits.items() if f.ok and f.type in _ANALYTIC), dtype=np.int64)
     memo = _FIT_MEMO.get()
     noise = memo.get("noise") if memo is not None else None  # None: a noise-free mesh, where no surface misfits
-    misfits = {q: noise is not None and _residual_scale(fits[q], V[np.unique(F[labels == q])]) > MISFIT_SCALE * noise
+    misfits = {q: noise is not None
+               and _residual_scale(fits[q], V[_vertices_of(F, labels == q, len(V))]) > MISFIT_SCALE * noise
                for q in analytic.tolist()}
 
     def on(q, tris):  # each triangle's largest vertex distance to face q's surface; inf if it does not lie on it
@@ -713,10 +725,10 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
             # a face no surface fits goes whole, but for debris too small for a surface (which `_tidy` places), or
             # stays whole: a larger remnant may still get a face on its own poor surface, and a piece of it may not
             # (rocker-arm: a B-spline face 2.8x out built, its remnant after giving 174 triangles away did not)
-            if len(np.unique(F[rest])) >= MIN_PART_VERTICES:
+            if len(_vertices_of(F, rest, len(V))) >= MIN_PART_VERTICES:
                 out[moved & (labels == p)] = p
             continue
-        if len(rest) and len(np.unique(F[rest])) < MIN_PART_VERTICES:
+        if len(rest) and len(_vertices_of(F, rest, len(V))) < MIN_PART_VERTICES:
             in_rest = np.isin(pairs, rest)
             across = in_rest[:, 0] ^ in_rest[:, 1]
             around = np.unique(out[np.where(in_rest[across, 0], pairs[across, 1], pairs[across, 0])])
@@ -790,7 +802,7 @@ def dissolve_misfits(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: f
         # the surface inside is the face only when what is left beside it is debris too small for a face of its
         # own (crank: a flat bottom and eight teeth of the wall); a larger rest would be a face no surface fits
         rest = np.flatnonzero(grown == p)
-        if len(rest) and len(np.unique(mesh.faces[rest])) >= MIN_PART_VERTICES:
+        if len(rest) and len(_vertices_of(mesh.faces, rest, len(mesh.vertices))) >= MIN_PART_VERTICES:
             if grown is out:
                 grown = out.copy()
             grown[grown == q] = p
@@ -881,13 +893,13 @@ def _small_faces(mesh: Mesh, labels: np.ndarray, small: np.ndarray, pairs: np.nd
     clusters = []
     for c in np.unique(comp[comp >= 0]):
         tris = np.flatnonzero(comp == c)
-        ids = np.unique(F[tris])
+        ids = _vertices_of(F, tris, len(V))
         if big(tris) and np.abs(fit_plane(V[ids]).distance(V[ids])).max() > tolerance:
             clusters += [g for g in _coplanar_pieces(V, F, tris, pairs, tolerance) if big(g)]
         else:
             clusters.append(tris)
     for tris in clusters:
-        ids = np.unique(F[tris])
+        ids = _vertices_of(F, tris, len(V))
         drawn = big(tris)
         if len(ids) < (MIN_FLAT_VERTICES if drawn else MIN_CORNER_VERTICES):
             continue
