@@ -72,6 +72,11 @@ MIN_FLAT_VERTICES = 4
 #: faces took joint from 17 to 52 faces); a CAD export's two-triangle faces 4.4–22 (a plate's walls), 187 (the
 #: ABC model's tab).
 DRAWN_AREA_RATIO = 3.0
+#: On a noise-free mesh an analytic surface misfits its face when its robust residual is above this share of the
+#: tolerance (:func:`grow_faces`); a surface of the face's own type fits it to round-off.
+EXACT_MISFIT = 0.05
+#: ... when its vertices are exact: the median robust residual of its analytic faces is under this share of the tolerance.
+EXACT_RESIDUAL = 0.001
 
 Progress = Callable[[str, float], None]
 
@@ -662,9 +667,18 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     analytic = np.array(sorted(q for q, f in fits.items() if f.ok and f.type in _ANALYTIC), dtype=np.int64)
     memo = _FIT_MEMO.get()
     noise = memo.get("noise") if memo is not None else None  # None: a noise-free mesh, where no surface misfits
-    misfits = {q: noise is not None
-               and _residual_scale(fits[q], V[_vertices_of(F, labels == q, len(V))]) > MISFIT_SCALE * noise
-               for q in analytic.tolist()}
+    scales = {q: _residual_scale(fits[q], V[_vertices_of(F, labels == q, len(V))]) for q in analytic.tolist()}
+    exact = False
+    if noise is not None:
+        misfits = {q: s > MISFIT_SCALE * noise for q, s in scales.items()}
+    else:
+        # a noise-free mesh whose vertices are exact (a CAD export: most analytic faces fit to round-off) — not
+        # every mesh without noise has them (a remeshed model's lie a share of the tolerance off) — shows a
+        # compromise over pieces of several faces by a residual that is a share of the tolerance
+        exact = bool(scales) and float(np.median(list(scales.values()))) <= EXACT_RESIDUAL * tolerance
+        misfits = {q: exact and s > EXACT_MISFIT * tolerance for q, s in scales.items()}
+        log.debug("grow_faces: median residual %.3g tolerances (exact vertices: %s)",
+                  float(np.median(list(scales.values()))) / tolerance if scales else float("nan"), exact)
 
     def on(q, tris):  # each triangle's largest vertex distance to face q's surface; inf if it does not lie on it
         d = np.abs(fits[q].distance(V[F[tris]].reshape(-1, 3))).reshape(-1, 3).max(axis=1)
@@ -733,6 +747,10 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
             across = in_rest[:, 0] ^ in_rest[:, 1]
             around = np.unique(out[np.where(in_rest[across, 0], pairs[across, 1], pairs[across, 0])])
             pieces = _planar_pieces(mesh, rest, pairs, [fits[q] for q in around.tolist() if q in fits], tolerance)
+            if exact and not pieces and _drawn_flat(mesh)(rest) and len(_vertices_of(F, rest, len(V))) >= \
+                    MIN_FLAT_VERTICES and np.abs(fit_plane(V[_vertices_of(F, rest, len(V))]).distance(
+                        V[_vertices_of(F, rest, len(V))])).max() <= tolerance:
+                pieces = [rest]  # a face a CAD export drew flat with a few large triangles (`_small_faces` keeps it)
             if sum(len(c) for c in pieces) < len(rest):
                 out[moved & (labels == p)] = p
     moved = out != labels
