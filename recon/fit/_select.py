@@ -210,12 +210,18 @@ def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float,
     if first.type == "plane":
         return first
     best, best_c = first, _chord_rms(first, pts, faces)
-    if best_c < CHORD_FLOOR * tolerance:
-        return first
-    for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
-        c = _chord_rms(fit, pts, faces)
-        if c <= CHORD_GAIN * best_c:
-            best, best_c = fit, c
+    if best_c >= CHORD_FLOOR * tolerance:
+        for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
+            c = _chord_rms(fit, pts, faces)
+            if c <= CHORD_GAIN * best_c:
+                best, best_c = fit, c
+    if best is first and first.type == "sphere" and "cylinder" in types:
+        # a band whose vertices are two circles of one radius (a hole through a thin plate) lies on a sphere as
+        # exactly as on the cylinder, and its chords are too short to tell: the cylinder, when it holds the
+        # chords no worse. A sphere a designer drew has its vertices on more circles, where no cylinder fits.
+        cyl = ANALYTIC_FITTERS["cylinder"](pts, normals, tolerance=tolerance)
+        if cyl and _chord_rms(cyl, pts, faces) <= best_c:
+            best, best_c = cyl, _chord_rms(cyl, pts, faces)
     if best is not first:
         log.debug("fit_surface: the chords lie on the %s (RMS %.3g), not on the %s (%.3g)", best.type, best_c,
                   first.type, _chord_rms(first, pts, faces))
