@@ -617,16 +617,17 @@ def test_a_filleted_box_frame_is_not_one_ball():
     assert not _one_centre(corner + [cylinder([a, -b, 0], [0, 0, 1]), sphere([a, -b, c])])
 
 
-def test_a_thin_plate_s_holes_are_cylinders():
-    """A 60 × 40 plate 0.5 thick with holes of radius 5 and 3, exported as STL like any CAD part: each hole's wall
-    is a band whose vertices are its two end circles, which a sphere also holds (the 5 mm hole came out a sphere).
-    It converts to its 8 true faces — 6 planes and 2 cylinders of the holes' radii — in a valid solid of the
-    plate's volume."""
+@pytest.mark.parametrize("thickness", [0.5, 1.0])
+def test_a_thin_plate_s_holes_are_cylinders(thickness):
+    """A 60 × 40 plate 0.5 (1.0) thick with holes of radius 5 and 3, exported as STL like any CAD part: each hole's
+    wall is a band whose vertices are its two end circles, which a sphere also holds (the 5 mm hole of the 0.5 plate
+    came out a sphere). It converts to its 8 true faces — 6 planes and 2 cylinders of the holes' radii — in a valid
+    solid of the plate's volume."""
     from build123d import Box, Cylinder, Pos, export_stl
 
     from recon import convert
 
-    part = Box(60, 40, 0.5) - Pos(-15, 0, 0) * Cylinder(5, 10) - Pos(15, 0, 0) * Cylinder(3, 10)
+    part = Box(60, 40, thickness) - Pos(-15, 0, 0) * Cylinder(5, 10) - Pos(15, 0, 0) * Cylinder(3, 10)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "plate.stl"
         export_stl(part, str(path), tolerance=0.01, angular_tolerance=0.2)
@@ -635,4 +636,4 @@ def test_a_thin_plate_s_holes_are_cylinders():
     radii = sorted(f.params["radius"] for f in result.fits.values() if f.type == "cylinder")
     assert radii == pytest.approx([3.0, 5.0], rel=1e-4)
     assert result.brep.validity.ok
-    assert result.brep.validity.volume == pytest.approx(0.5 * (60 * 40 - np.pi * (25 + 9)), rel=1e-3)
+    assert result.brep.validity.volume == pytest.approx(thickness * (60 * 40 - np.pi * (25 + 9)), rel=1e-3)
