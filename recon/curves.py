@@ -613,8 +613,9 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         ``fit_curve(points, *, start, end, tolerance) -> EdgeCurve``; :func:`fit_edge_curve` by default.
     refine : collection of part ids, optional
         Parts whose surfaces are trusted to place an edge between the mesh's points: a polyline gets points
-        added where its chords stray from the edge (:func:`_refined`) only when both its parts are in it
-        (an open boundary: its one part). Default: every part.
+        added where its chords stray from the edge (:func:`_refined`), and a smooth curve that strays from its
+        points gives way to them (:func:`_strays`), only when both its parts are in it (an open boundary: its
+        one part). Default: every part.
 
     Returns
     -------
@@ -647,7 +648,8 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
             else:
                 inner = _project_two(inner, int(left), int(right), project, iterations, limit)
         pts = np.vstack([points[a][None], inner, points[b][None]])
-        if refine is None or (left in refine and (right == OUTSIDE or right in refine)):
+        trusted = refine is None or (left in refine and (right == OUTSIDE or right in refine))
+        if trusted:
             pts = _refined(pts, int(left), int(right), project, tolerance=tolerance, iterations=iterations,
                            max_points=max_points)
         inner = pts[1:-1]
@@ -665,7 +667,7 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
             log.info("network_geometry: edge %d: %s", e, err)
             curves.append(EdgeCurve("line", {"start": pts[0].copy(), "end": pts[-1].copy()}, float("inf")))
             continue
-        if _strays(curve, pts, int(left), int(right), project, tolerance):
+        if trusted and _strays(curve, pts, int(left), int(right), project, tolerance):
             log.info("network_geometry: edge %d: its smooth curve strays from its points and their surfaces: "
                      "the polyline is the edge", e)
             curve = polyline_curve(pts)
@@ -712,7 +714,10 @@ def _strays(curve: EdgeCurve, pts, left: int, right: int, project: Projector, to
     sparse points on an arc the chords are a sagitta inside it; across a zigzag seam cut through one sphere (no
     intersection to follow) the smooth loop is 0.15 tolerances off the sphere, the zigzag 0.63. So are curves of
     more points that are off the surfaces but nearer them than their chords (casting: 4 to 8 points between
-    surfaces 1 to 16 tolerances apart): replaced, they moved its deviations both ways.
+    surfaces 1 to 16 tolerances apart): replaced, they moved its deviations both ways. The caller asks only
+    where both surfaces are fitted within tolerance (``refine``): box_fillet coarse's B-splines out of
+    tolerance lie 8 to 19 tolerances off their edges' points, and its fillings, bounded by the polylines,
+    reached twice as far from the mesh (ours to mesh p95 6.3 to 28 % of the diagonal).
     """
     if curve.kind != "bspline" or int(curve.params["degree"]) < 2 or len(pts) < 3:
         return False
