@@ -566,7 +566,12 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
         across = in_rest[:, 0] ^ in_rest[:, 1]
         outer = np.where(in_rest[across, 0], pairs[across, 1], pairs[across, 0])
         cands = [int(q) for q in np.unique(out[outer]) if q != p and fits.get(int(q)) and fits[int(q)].params]
-        if not cands:
+        if not cands:  # no neighbour within tolerance to give it to: it may be a face of its own
+            across = _rest_across_misfits(mesh, out, p, rest, fits, pairs, tolerance, simpler)
+            if across is not None:
+                log.info("face %d was a %s: cut back to its analytic surface, the rest a face of its own with "
+                         "%d triangles of faces out of tolerance", p, fit.type, int((across != out).sum()) - len(rest))
+                out = across
             continue
         trial = out.copy()
         # a planar piece of the rest that no neighbouring surface holds is a face of its own (a chamfered box's
@@ -584,12 +589,77 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
             continue
         new.update(_fit_parts(mesh, trial, tolerance=tolerance, only=receivers))
         if not all(new[q].ok and new[q].type == fits[q].type for q in receivers):
-            continue  # the slivers given back must not change what their face is (box_fillet noisy20: a
-            #           fillet's cylinder became a cone, whose face then failed and cost 2 % of the volume)
+            # the slivers given back must not change what their face is (box_fillet noisy20: a fillet's
+            # cylinder became a cone, whose face then failed and cost 2 % of the volume) — but the rest may be
+            # a face of its own that a neighbour out of tolerance holds the other half of
+            across = _rest_across_misfits(mesh, out, p, rest, fits, pairs, tolerance, simpler)
+            if across is not None:
+                log.info("face %d was a %s: cut back to a %s, the rest a face of its own with %d triangles of "
+                         "faces out of tolerance", p, fit.type, new[p].type, int((across != out).sum()) - len(rest))
+                out = across
+            continue
         log.info("face %d was a %s: cut back to a %s, %d triangles to %d neighbours, %d planar pieces kept as faces",
                  p, fit.type, new[p].type, len(rest), len(receivers), len(corners))
         out = trial
     return out
+
+
+def _rest_across_misfits(mesh: Mesh, labels: np.ndarray, p: int, rest: np.ndarray, fits: dict, pairs: np.ndarray,
+                         tolerance: float, simpler=_ANALYTIC):
+    """Labels with the rest of face ``p`` (what :func:`trim_to_surface` cuts off it) made a face of its own
+    together with the triangles of neighbouring faces out of tolerance that lie on the same analytic surface,
+    or None.
+
+    On a CAD tessellation of long slivers a face can lie in two parts whose slivers alternate: crank's web side
+    (a plane) is 8 slivers of the face beside it (patch_83, a plane but for them: a B-spline 1.25× out of
+    tolerance) and 12 of another (patch_89, a torus 1.6× out). Neither keeps them within tolerance and neither
+    can take the other's, so trimming gave up. The rest's own surface (fitted to it alone) is grown over the
+    triangles of the faces around it that are out of tolerance, ring by ring, while they lie on it (vertices
+    within ``tolerance``, normals within :data:`GROW_ANGLE_DEG`). Kept only when the new face has a surface's
+    worth of vertices (:data:`MIN_PART_VERTICES`) and fits an analytic surface within tolerance, face ``p``
+    without it fits one of the types ``simpler`` within tolerance, and every face that gave triangles fits
+    within tolerance without them: every face involved ends within tolerance where two did not.
+    """
+    from .decompose._quickfit import surface_normals
+
+    V, F = mesh.vertices, mesh.faces
+    own = _fit_members(mesh, np.sort(rest), _memo_vertex_normals(mesh), tolerance, p, _ANALYTIC[-1])
+    if not own.ok or not own.params:
+        return None
+    misfit = [int(q) for q, f in fits.items() if q != p and not f.ok]
+    if not misfit:
+        return None
+    cos_min = np.cos(np.deg2rad(GROW_ANGLE_DEG))
+    cand = np.flatnonzero(np.isin(labels, misfit))
+    d = np.abs(own.distance(V[F[cand]].reshape(-1, 3))).reshape(-1, 3).max(axis=1)
+    n = surface_normals(own, mesh.face_centroids[cand])
+    lies = np.zeros(len(labels), dtype=bool)
+    lies[cand[(d <= tolerance) & (np.abs(np.einsum("ij,ij->i", n, mesh.face_normals[cand])) >= cos_min)]] = True
+    face = np.zeros(len(labels), dtype=bool)
+    face[rest] = True
+    while True:  # ring by ring over the triangles that lie on the rest's surface
+        a, b = face[pairs[:, 0]], face[pairs[:, 1]]
+        nxt = np.concatenate([pairs[a & ~b & lies[pairs[:, 1]], 1], pairs[b & ~a & lies[pairs[:, 0]], 0]])
+        if not len(nxt):
+            break
+        face[nxt] = True
+    taken = np.flatnonzero(face & (labels != p))
+    if not len(taken):
+        return None
+    tris = np.flatnonzero(face)
+    if len(np.unique(F[tris])) < MIN_PART_VERTICES:
+        return None
+    trial = labels.copy()
+    new = int(labels.max()) + 1
+    trial[tris] = new
+    givers = sorted(set(labels[taken].tolist()))
+    got = _fit_parts(mesh, trial, tolerance=tolerance, only=[p, new], upto=_ANALYTIC[-1])
+    if not (got[p].ok and got[p].type in simpler and got[new].ok):
+        return None
+    got = _fit_parts(mesh, trial, tolerance=tolerance, only=givers)
+    if not all(got[q].ok for q in givers):
+        return None
+    return trial
 
 
 def _planar_pieces(mesh: Mesh, tris: np.ndarray, pairs: np.ndarray, surfaces, tolerance: float) -> list:

@@ -296,6 +296,33 @@ def test_a_face_that_took_in_a_sliver_is_cut_back_to_its_plane():
     np.testing.assert_array_equal(trimmed, truth)
 
 
+def test_a_face_split_between_two_faces_out_of_tolerance_becomes_one():
+    """Crank's web side, in a box: the +x side's triangles alternate, a third of them given to the top (which then
+    fits no plane) and the rest to a face that also holds the whole +y side (two planes at a right angle: out of
+    tolerance too). Neither face can take the other's share of the side, so the top could not be cut back to its
+    plane. Grown over the faces out of tolerance on the side's own plane, the top's rest and the other face's
+    share are one face, the top and the +y side are what is left: every face is one plane of the box again."""
+    from recon.pipeline import _fit_parts, trim_to_surface
+
+    mesh, truth, _, top, side = _box_with_strip_on_top()
+    n, c = mesh.face_normals, mesh.face_centroids
+    front = int(truth[np.argmax(n[:, 1])])  # the +y side
+    labels = truth.copy()
+    teeth = (truth == side) & (np.floor(c[:, 1]) % 3 == 0)
+    labels[teeth] = top
+    other = int(truth.max()) + 1
+    labels[((truth == side) & ~teeth) | (truth == front)] = other
+    tolerance = 1e-3
+    fits = _fit_parts(mesh, labels, tolerance=tolerance)
+    assert not (fits[top].ok and fits[top].type == "plane") and not fits[other].ok
+    trimmed = trim_to_surface(mesh, labels, fits, tolerance=tolerance)
+    # the same partition as the box's faces (the side's face has a new id)
+    pairs = np.unique(np.column_stack([truth, trimmed]), axis=0)
+    assert len(pairs) == len(np.unique(truth)) == len(np.unique(trimmed))
+    refit = _fit_parts(mesh, trimmed, tolerance=tolerance)
+    assert all(f.ok and f.type == "plane" for f in refit.values() if f.n_points)
+
+
 def test_a_strip_given_to_a_neighbour_returns_to_the_face_it_lies_on():
     """The same strip given to the top face: the top then fits no plane (a B-spline carries it), the side's
     plane holds every triangle of the strip (on it, normal along it), so growing the faces over their borders

@@ -242,3 +242,48 @@ def test_coarse_chords_are_refined_onto_the_surfaces_edge():
     # Not refined, each rim stays the chord: 1 - cos 45° = 0.29 of the radius inside the cylinder.
     plain = network_geometry(net, project, tolerance=tol, refine=())
     assert all(plain.curves[e].kind == "line" for e in rims)
+
+
+def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
+    """Crank's torus/plane edge, made of a plane (x = 0) and a cylinder about an axis along y that cuts it in two
+    lines, z = 0 and z = 1, and bulges 11.6 tolerances through it between them. The mesh (flat, in the plane) puts
+    the edge across the gap: a chord from (0, 0, 1) down to (0, 0, 0), then 0.03 along y. No point near the
+    chord's middle lies on both surfaces, so it is not refined, and the quadratic through the 3 points bows far
+    out sideways (more than STRAY_FACTOR tolerances from the chords) while lying off both surfaces as much as the
+    chord does. The edge is the polyline: its points, nothing the surfaces or the mesh do not show."""
+    from scipy.interpolate import BSpline
+
+    from recon.curves import STRAY_FACTOR
+
+    tol = 1e-3
+    bulge = 11.6 * tol
+    a = (0.25 - bulge**2) / (2 * bulge)  # (a + bulge)² = a² + 0.5²: the cylinder through z = 0 and z = 1 at x = 0
+    r = a + bulge
+
+    def project(part, pts):
+        if part == 0:  # the plane x = 0
+            return np.column_stack([np.zeros(len(pts)), pts[:, 1:]]), np.tile([1.0, 0.0, 0.0], (len(pts), 1))
+        w = np.column_stack([pts[:, 0] + a, pts[:, 2] - 0.5])
+        e = w / np.linalg.norm(w, axis=1)[:, None]
+        on = np.column_stack([r * e[:, 0] - a, pts[:, 1], r * e[:, 1] + 0.5])
+        return on, np.column_stack([e[:, 0], np.zeros(len(pts)), e[:, 1]])
+
+    # (y, z) in the plane x = 0: part 1 the strip right of the chord, part 0 the L around it
+    yz = np.array([[0, 1], [0, 0], [0.03, 0], [0.03, 1], [-0.5, 1], [-0.5, -0.5], [0.03, -0.5]], dtype=float)
+    v = np.column_stack([np.zeros(len(yz)), yz])
+    faces = np.array([[1, 2, 3], [1, 3, 0], [4, 5, 1], [4, 1, 0], [5, 6, 1], [1, 6, 2]])
+    labels = np.array([1, 1, 0, 0, 0, 0])
+    net = curve_network(v, faces, labels)
+    (e,) = [k for k in range(net.n_edges) if sorted(net.edge_parts[k]) == [0, 1]]
+    assert len(net.polyline(e)) == 3
+    geo = network_geometry(net, project, tolerance=tol)
+    pts = geo.polyline(e)
+    smooth = fit_edge_curve(pts, closed=False, tolerance=tol)
+    curve = BSpline(smooth.params["knots"], smooth.params["control_points"], smooth.params["degree"])
+    assert np.max(np.abs(curve(np.linspace(0, 1, 101))[:, 1])) > STRAY_FACTOR * tol  # it bows out along y
+    c = geo.curves[e]
+    assert c.kind == "bspline" and c.params["degree"] == 1
+    np.testing.assert_allclose(c.params["control_points"], pts)
+    # every point of it is on the chords: in the plane, and between y = 0 and 0.03
+    edge = BSpline(c.params["knots"], c.params["control_points"], 1)(np.linspace(0, 1, 101))
+    assert np.max(np.abs(edge[:, 0])) <= 1e-12 and edge[:, 1].min() >= -1e-12 and edge[:, 1].max() <= 0.03 + 1e-12
