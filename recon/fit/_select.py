@@ -43,6 +43,9 @@ CHORD_GAIN = 0.5
 #: ... and only when the first type's chords are at least this many tolerances off: dense meshes have short
 #: chords that every surface through their vertices holds, and nothing is gained there.
 CHORD_FLOOR = 0.1
+#: A sphere and a cylinder that both hold a part's vertices within this share of the tolerance hold a band on two
+#: circles (:func:`_hugging_chords`): exactly, as on a CAD export, not as a compromise.
+BAND_EXACT = 0.01
 
 
 def fit_surface(
@@ -215,12 +218,14 @@ def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float,
             c = _chord_rms(fit, pts, faces)
             if c <= CHORD_GAIN * best_c:
                 best, best_c = fit, c
-    if best is first and first.type == "sphere" and "cylinder" in types:
+    if best is first and first.type == "sphere" and "cylinder" in types and first.deviation["max"] <= \
+            BAND_EXACT * tolerance:
         # a band whose vertices are two circles of one radius (a hole through a thin plate) lies on a sphere as
         # exactly as on the cylinder, and its chords are too short to tell: the cylinder, when it holds the
-        # chords no worse. A sphere a designer drew has its vertices on more circles, where no cylinder fits.
+        # vertices as exactly and the chords no worse. A sphere a designer drew has its vertices on more
+        # circles, where no cylinder fits.
         cyl = ANALYTIC_FITTERS["cylinder"](pts, normals, tolerance=tolerance)
-        if cyl and _chord_rms(cyl, pts, faces) <= best_c:
+        if cyl and cyl.deviation["max"] <= BAND_EXACT * tolerance and _chord_rms(cyl, pts, faces) <= best_c:
             best, best_c = cyl, _chord_rms(cyl, pts, faces)
     if best is not first:
         log.debug("fit_surface: the chords lie on the %s (RMS %.3g), not on the %s (%.3g)", best.type, best_c,
