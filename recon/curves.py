@@ -558,6 +558,14 @@ def _onto_edge(x, left: int, right: int, project: Projector, iterations: int):
     return _project_two(x, left, right, project, iterations, None)
 
 
+def _nearest_segment(x, pts) -> np.ndarray:
+    """``(m,) int``: for each point of ``x`` (m, 3), the segment of the polyline ``pts`` (k, 3) nearest to it."""
+    a, d = pts[:-1], np.diff(pts, axis=0)
+    w = x[:, None, :] - a[None, :, :]
+    t = np.clip(np.einsum("mkj,kj->mk", w, d) / np.maximum(np.einsum("kj,kj->k", d, d), 1e-300), 0.0, 1.0)
+    return np.argmin(np.linalg.norm(w - t[:, :, None] * d[None, :, :], axis=2), axis=1)
+
+
 def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float, iterations: int, max_points: int):
     """The edge polyline with points added where a chord strays more than ``tolerance`` from the edge.
 
@@ -587,6 +595,11 @@ def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float
         # 0.21 of its chord, a half circle's 0.5.
         moved = np.linalg.norm(on - mids, axis=1)
         off = (moved > tolerance) & (moved <= 0.5 * seg[long]) & (gap <= tolerance)
+        # and onto the part of the edge between the chord's ends, not onto another stretch of the same edge: on
+        # crank a plane cuts a sphere in a circle, one edge runs along its arc and back across a chord of it,
+        # and the chord's midpoint went to the arc (the nearest point of the circle), so the wire crossed itself.
+        # (Nearer a chord's neighbour is allowed: beside a sharp turn an arc can bulge towards the next chord.)
+        off &= np.abs(_nearest_segment(on, pts) - long) <= 1
         if not off.any():
             break
         keep = np.flatnonzero(off)

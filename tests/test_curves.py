@@ -287,3 +287,29 @@ def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
     # every point of it is on the chords: in the plane, and between y = 0 and 0.03
     edge = BSpline(c.params["knots"], c.params["control_points"], 1)(np.linspace(0, 1, 101))
     assert np.max(np.abs(edge[:, 0])) <= 1e-12 and edge[:, 1].min() >= -1e-12 and edge[:, 1].max() <= 0.03 + 1e-12
+
+
+def test_a_chord_is_not_refined_onto_another_stretch_of_its_edge():
+    """Crank's patch_103: a plane cuts a sphere in a circle, and one edge runs along the circle's arc, then back
+    across a chord of it (the tessellation's long triangle). The chord's midpoint, moved onto both surfaces,
+    lands on the circle's nearest point — on the arc the edge has already run along, half a radius away, within
+    the half-chord a refinement may move. Inserted, the polyline went back over itself and the plane's face
+    crossed itself. The chord stays a chord; the arc's own chords are refined."""
+    from recon.curves import _refined
+
+    h = 2.0
+    R = np.hypot(1.0, h)  # the sphere about (0, 0, h) through the unit circle in z = 0
+
+    def project(part, pts):
+        if part == 0:
+            return np.column_stack([pts[:, :2], np.zeros(len(pts))]), np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+        w = pts - [0.0, 0.0, h]
+        e = w / np.linalg.norm(w, axis=1)[:, None]
+        return np.array([0.0, 0.0, h]) + R * e, e
+
+    ang = np.deg2rad(np.r_[np.arange(280, 200, -10), 330, 320])
+    pts = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(len(ang))])
+    out = _refined(pts, 0, 1, project, tolerance=1e-3, iterations=6, max_points=64)
+    assert len(out) > len(pts)  # the arc's chords (sagitta 0.0038) got points on the circle
+    i = int(np.flatnonzero(np.all(np.isclose(out, pts[7]), axis=1))[0])  # the 210° point, where the chord starts
+    np.testing.assert_allclose(out[i + 1], pts[8])  # the chord to 330° has no point inserted
