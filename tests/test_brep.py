@@ -609,3 +609,65 @@ def test_a_band_round_a_cylinder_gets_its_seam_at_the_middle_of_its_longest_edge
     u0 = turned.geom.Value(0.0, 0.0)
     assert np.rad2deg(np.arctan2(u0.Y(), u0.X())) == pytest.approx(125.0, abs=3.0)
     assert turned.radius == pytest.approx(1.0)
+
+
+def test_a_face_on_its_mesh_boundary_where_the_placed_corners_cross():
+    """Crank's linear_138: a plane sliver of 4 triangles between poor fits. The network puts each corner on all
+    the surfaces that meet there, and that moved one corner 1.2 tolerances across the opposite edge: the
+    plane's wire through the placed corners crosses itself, and no face bounded by it exists. The mesh's own
+    boundary does not cross itself. Here A(0,0) B(10,0) C(10,1) D(-1,0.5) is the mesh's quadrilateral (area 8);
+    D placed at (1,-0.5) puts C→D across A→B at (4, 0)."""
+    from recon.brep import _build
+    from recon.brep._surfaces import surface_model
+    from recon.fit import SurfaceFit
+
+    plane = surface_model(SurfaceFit("plane", {"origin": [5.0, 0.5, 0.0], "normal": [0.0, 0.0, 1.0]},
+                                     {"max": 0.0, "rms": 0.0, "p99": 0.0}, 4))
+
+    class Polylines:  # what `_face_on_own_curves` reads of a NetworkGeometry or a CurveNetwork
+        def __init__(self, corners):
+            c = np.column_stack([np.asarray(corners, dtype=float), np.zeros(4)])
+            self.lines = [c[[i, (i + 1) % 4]] for i in range(4)]
+
+        def polyline(self, e):
+            return self.lines[e]
+
+    loops = [np.array([1, 2, 3, 4])]
+    placed = Polylines([(0, 0), (10, 0), (10, 1), (1, -0.5)])
+    mesh = Polylines([(0, 0), (10, 0), (10, 1), (-1, 0.5)])
+    assert _build._face_on_own_curves(plane, loops, placed, 1, precision=1e-3) == (None, 0.0)
+    face, area = _build._face_on_own_curves(plane, loops, mesh, 1, precision=1e-3)
+    assert face is not None and area == pytest.approx(8.0, rel=1e-9)
+
+
+def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
+    # As above with the placed corners refused too (as where they cross): the last resort is each face on the
+    # mesh's own boundary in its surface's parameters, and sewing closes the three into one valid solid, its
+    # volume within the rim polylines' sagitta (0.0096 of the 0.01 tolerance) times the area of the cylinder's.
+    from recon.brep import _build
+    from recon.curves import CurveNetwork
+    from recon.errors import BrepError
+
+    def refuse(*args, **kwargs):
+        raise BrepError("refused by the test")
+
+    own_curves_face = _build._own_curves_face
+
+    def on_mesh_only(model, loops, geo, vote, precision):
+        if not isinstance(geo, CurveNetwork):
+            raise BrepError("the placed corners cross (by the test)")
+        return own_curves_face(model, loops, geo, vote, precision)
+
+    monkeypatch.setattr(_build, "_face_on_surface", refuse)
+    monkeypatch.setattr(_build, "_fallback_face", lambda *a, **k: (None, 0.0, "failed", "refused by the test"))
+    monkeypatch.setattr(_build, "_own_curves_face", on_mesh_only)
+    m = trimesh.creation.cylinder(radius=8, height=20, sections=128).subdivide_to_size(1.0)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    nz = m.face_normals[:, 2]
+    lab = np.where(nz > 0.9, 0, np.where(nz < -0.9, 1, 2)).astype(np.int64)
+    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01)
+    assert [r.status for r in res.faces] == ["ok-sewn"] * 3
+    assert sum("built on its mesh boundary" in w for w in res.warnings) == 3
+    assert res.ok and res.validity.n_faces == 3
+    area = 2 * np.pi * 8 * 20 + 2 * np.pi * 64
+    assert res.validity.volume == pytest.approx(np.pi * 64 * 20, abs=0.01 * area)

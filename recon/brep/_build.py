@@ -1197,9 +1197,17 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 # sewing and goes first (casting: a filling closes the solid, a face on own curves left 2 free
                 # edges after sewing).
                 face, area = _face_on_own_curves(model, loops, geo, vote, precision=tolerance)
+                how = "its own curves"
+                if face is None:
+                    # The network's vertices are placed on all the surfaces that meet there; on a sliver
+                    # between poor fits that can move a corner across the opposite edge (crank's linear_138:
+                    # 1.2 tolerances, the plane's wire crossed itself). The mesh's own boundary does not cross
+                    # itself; it lies within the edge gap of the shared edges, which sewing bridges.
+                    face, area = _face_on_own_curves(model, loops, network, vote, precision=tolerance)
+                    how = "its mesh boundary"
                 if face is not None:
                     status = f"{own_status}-sewn"
-                    warnings.append(f"{name}: {msg}; built on its own curves, joined by sewing")
+                    warnings.append(f"{name}: {msg}; built on {how}, joined by sewing")
             if face is None:
                 if fit_ok or near or model is None:  # (a near fit's own face was tried first)
                     warnings.append(f"{name}: no face ({msg})")
