@@ -386,3 +386,16 @@ def test_names_for_a_shape_follow_its_face_order(tmp_path):
     write_named_step(box.wrapped, [None] * 6, step)
     with pytest.raises(InputError, match="read from it"):
         deviation(mesh.vertices, mesh.faces, step, names=names)
+
+
+def test_shape_to_mesh_percentiles_are_shares_of_the_area():
+    """A 10-unit box with a hemispherical bump of radius 1 on top, against the plain box's 12 triangles: the bump
+    is 1 % of the area (2π of 606), every other point of the shape lies on the mesh. So 95 % of the area is at
+    distance 0 — the p95 is 0 — and the farthest point, the bump's apex, is 1 from the top. The bump's
+    tessellation nodes (a few hundred, where the planes have their corners only) are not to outweigh the
+    area-uniform samples: with 500 of those they did (p95 0.9)."""
+    shape = bd.Box(10, 10, 10) + bd.Pos(0, 0, 5) * bd.Sphere(1)
+    box = trimesh.creation.box(extents=(10, 10, 10))
+    rep = deviation(np.asarray(box.vertices), np.asarray(box.faces), shape, samples=500)
+    assert rep.shape_to_mesh.p95 <= 1e-9
+    assert rep.shape_to_mesh.max == pytest.approx(1.0, abs=1e-6)
