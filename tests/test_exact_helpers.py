@@ -14,6 +14,8 @@ from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
 from recon.fit._surfaces import col_means, col_sums, extent, row_norms, row_sums
 from recon.fit._types import median, percentile
+from recon.mesh._clean import _extremes
+from recon.mesh._topology import stable_argsort, unique_edges, unique_rows
 
 
 def _same(a, b) -> bool:
@@ -71,6 +73,37 @@ def test_unique_is_numpys():
         x = rng.integers(-20, 5000, n)
         assert _same(unique(x), np.unique(x))
         assert _same(unique(x.reshape(-1, 1)), np.unique(x.reshape(-1, 1)))
+
+
+def test_stable_argsort_and_unique_rows_are_numpys():
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 2, 9, 3000, 100_000):
+        for upper in (1, 2, 50, 2**20, 2**45, 2**62):
+            x = rng.integers(0, upper, n)
+            assert _same(stable_argsort(x), np.argsort(x, kind="stable"))
+            assert _same(stable_argsort(x, upper), np.argsort(x, kind="stable"))
+        for upper, d in ((3, 2), (5000, 2), (800_000, 3)):  # the last too wide to pack with the index
+            keys = rng.integers(0, upper, (n, d))
+            packed = np.zeros(n, np.int64)
+            for j in range(d):
+                packed = packed * upper + keys[:, j]
+            _, first, inverse = np.unique(packed, return_index=True, return_inverse=True)
+            got = unique_rows(keys, upper)
+            assert _same(got[0], first.astype(np.int64)) and _same(got[1], inverse.astype(np.int64))
+
+
+def test_unique_edges_and_extremes_are_what_they_replace():
+    V, F = _mesh()
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    lo, hi = he.min(axis=1), he.max(axis=1)
+    _, first, inverse = np.unique(lo * len(V) + hi, return_index=True, return_inverse=True)
+    edges, face_edges, count = unique_edges(F, len(V))
+    assert _same(edges, np.column_stack([lo[first], hi[first]]))
+    assert _same(face_edges, inverse.reshape(-1, 3).astype(np.int64))
+    assert _same(count, np.bincount(inverse).astype(np.int64))
+    for x in _arrays(11, 5000):
+        lo, hi = _extremes(x)
+        assert _same(lo, x.min(axis=0)) and _same(hi, x.max(axis=0))
 
 
 def _mesh():
