@@ -30,6 +30,7 @@ import scipy.sparse as sp
 
 from .errors import MeshError
 from .fit._surfaces import row_norms
+from .mesh._topology import stable_argsort
 
 __all__ = ["FeatureField", "feature_field", "mesh_arrays", "heat_smooth"]
 
@@ -303,7 +304,7 @@ def hinge_pairs(faces, n_vertices: int, order=None) -> tuple[np.ndarray, np.ndar
     end = np.roll(faces, -1, axis=1).ravel()
     key = np.minimum(start, end) * np.int64(n_vertices) + np.maximum(start, end)
     if order is None:
-        order = np.argsort(key, kind="stable")
+        order = stable_argsort(key, n_vertices * n_vertices)
     ks = key[order]
     pair = np.flatnonzero(ks[1:] == ks[:-1])
     # only edges with exactly two triangles (a non-manifold fan would pair arbitrary triangles)

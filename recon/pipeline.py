@@ -24,6 +24,7 @@ from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
 from .fit._select import SIGMAS_PER_TOLERANCE
 from .mesh import Mesh, clean_mesh, load_mesh
+from .mesh._topology import stable_argsort, unique_first
 
 __all__ = ["Conversion", "convert", "face_labels", "STAGES"]
 
@@ -249,10 +250,10 @@ def _tidy(mesh: Mesh, labels: np.ndarray, *, tolerance: float | None = None) -> 
         if not small.any() or small.all():
             break
         labels = _absorb(labels, pairs, small)
-    _, first = np.unique(labels, return_index=True)
+    uniq, first = unique_first(labels)  # np.unique(labels, return_index=True)
     order = np.argsort(first)
     remap = np.empty(labels.max() + 1, dtype=np.int64)
-    remap[np.unique(labels)[order]] = np.arange(len(order))
+    remap[uniq[order]] = np.arange(len(order))
     return remap[labels]
 
 
@@ -1045,12 +1046,13 @@ def _coplanar_pieces(V: np.ndarray, F: np.ndarray, tris: np.ndarray, pairs: np.n
 def _vertex_counts(faces: np.ndarray, labels: np.ndarray) -> np.ndarray:
     k = int(labels.max()) + 1
     n = int(faces.max()) + 1
-    # distinct (label, vertex) pairs as the stored entries of a sparse label × vertex matrix (np.unique on
-    # rows sorts them lexicographically: 15 s at 1M triangles)
-    rows = np.repeat(labels, 3)
-    m = sp.csr_matrix((np.ones(len(rows), np.int32), (rows, faces.ravel())), shape=(k, n))
-    m.sum_duplicates()
-    return np.diff(m.indptr)
+    # distinct (label, vertex) pairs counted per label, as packed keys label · n + vertex sorted by numpy's
+    # vectorised sort (np.unique on rows sorts them lexicographically: 15 s at 1M triangles; a sparse label ×
+    # vertex matrix's sum_duplicates 16 ms at 100k, this 3 ms)
+    key = np.repeat(labels, 3) * np.int64(n) + faces.ravel()
+    key.sort()
+    distinct = key[np.r_[True, key[1:] != key[:-1]]]
+    return np.bincount(distinct // n, minlength=k)
 
 
 def _split_disconnected(labels: np.ndarray, pairs: np.ndarray) -> np.ndarray:
@@ -1121,7 +1123,7 @@ def _fit_parts(mesh: Mesh, labels: np.ndarray, *, tolerance: float, only=None, u
     vn = _memo_vertex_normals(mesh)
     if only is not None and len(only) * 8 < labels.max() + 1:  # a few faces: no sort of all the labels
         return {p: _fit_members(mesh, np.flatnonzero(labels == p), vn, tolerance, p, upto) for p in only}
-    order = np.argsort(labels, kind="stable")
+    order = stable_argsort(labels, labels.max() + 1)
     bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
     return {p: _fit_members(mesh, order[bounds[p] : bounds[p + 1]], vn, tolerance, p, upto)
             for p in (range(labels.max() + 1) if only is None else only)}

@@ -36,6 +36,7 @@ from ..features import FaceGeometry, FeatureField, _feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
+from ..mesh._topology import stable_argsort
 from ._topology import Topology, topology, unique
 from ._types import Decomposition, Part, SurfaceSkeleton
 
@@ -350,7 +351,7 @@ def _boundary_potentials(V, F, topo: Topology, patch):
     # successor of a boundary half-edge: a boundary half-edge of the same patch leaving its end vertex
     key_start = bp * np.int64(n) + start
     key_end = bp * np.int64(n) + end
-    order = np.argsort(key_start, kind="stable")
+    order = stable_argsort(key_start)
     sorted_keys = key_start[order]
     pos = np.searchsorted(sorted_keys, key_end)
     pos = np.minimum(pos, len(order) - 1)
@@ -601,7 +602,7 @@ def _middle_share(V, F, labels, area, n_parts, nrm=None):
     if nrm is None:
         nrm = FaceGeometry(V, F).unit
     out = np.full(n_parts, 0.5)
-    order = np.argsort(labels, kind="stable")
+    order = stable_argsort(labels, n_parts)
     bounds = np.searchsorted(labels[order], np.arange(n_parts + 1))
     for p in range(n_parts):
         idx = order[bounds[p] : bounds[p + 1]]

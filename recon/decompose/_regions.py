@@ -40,6 +40,7 @@ from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
 from ..fit._surfaces import row_norms, row_sums
 from ._quickfit import quick_fit, surface_normals
+from ..mesh._topology import stable_argsort
 from ._topology import unique
 
 __all__ = ["Regions", "fitted_regions", "split_by_fitting"]
@@ -719,7 +720,7 @@ def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -
     refinement passes most regions do not change, and the same fit on the same triangles is the same result.
     With ``ctx.worker`` about half of the fits (by size) are made there."""
     out = list(fits)
-    order = np.argsort(label, kind="stable")
+    order = stable_argsort(label + 1, len(fits) + 1)  # (the order of label itself: -1 marks no region)
     bounds = np.searchsorted(label[order], np.arange(len(fits) + 1))
     todo = []
     for r, fit in enumerate(fits):

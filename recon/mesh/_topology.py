@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["unique_edges", "halfedge_order", "manifold_pairs", "unique_rows", "stable_argsort"]
+__all__ = ["unique_edges", "halfedge_order", "manifold_pairs", "unique_rows", "stable_argsort", "unique_first"]
 
 _INT64_MAX = np.iinfo(np.int64).max
 
@@ -64,6 +64,18 @@ def unique_rows(keys: np.ndarray, upper: int) -> tuple[np.ndarray, np.ndarray]:
     else:
         _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
     return first.astype(np.int64), inverse.reshape(-1).astype(np.int64)
+
+
+def unique_first(keys: np.ndarray, upper: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_index=True)`` of a 1-D array of integers in ``[0, upper)``: the distinct values and
+    the index of each one's first occurrence, from :func:`stable_argsort` (numpy's own steps after its sort)."""
+    keys = np.asarray(keys)
+    perm = stable_argsort(keys, upper)
+    aux = keys[perm]
+    mask = np.empty(len(aux), dtype=bool)
+    mask[:1] = True
+    np.not_equal(aux[1:], aux[:-1], out=mask[1:])
+    return aux[mask], perm[mask]
 
 
 def _unique_first_inverse(keys: np.ndarray, upper: int) -> tuple[np.ndarray, np.ndarray]:
