@@ -103,12 +103,17 @@ class FaceGeometry:
     ``cross`` (m, 3) = (v1 − v0) × (v2 − v0), its length ``norm`` (m,) (twice the area) and the unit normal
     ``unit`` (m, 3) (``cross / max(norm, 1e-300)``). The same operations as each step made on its own."""
 
-    def __init__(self, vertices, faces):
-        self.cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    def __init__(self, vertices, faces, *, cross=None, centroid=None):
+        """``cross``, ``centroid``: those arrays when the caller has them (a :class:`recon.mesh.Mesh` caches them
+        for the stages after the decomposition)."""
+        if cross is None:
+            cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+        self.cross = cross
         self.norm = row_norms(self.cross)
         self._unit = None
         self._vf = (vertices, faces)
-        self._corners = self._centroid = None
+        self._corners = None
+        self._centroid = centroid
 
     @property
     def corners(self) -> np.ndarray:

@@ -19,10 +19,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from .decompose import Decomposition, decompose
-from .decompose._regions import split_by_fitting
+from .decompose._regions import _unique_inverse, split_by_fitting
 from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
 from .fit._select import SIGMAS_PER_TOLERANCE
+from .fit._surfaces import row_norms
 from .mesh import Mesh, clean_mesh, load_mesh
 from .mesh._topology import stable_argsort, unique_first
 
@@ -1091,11 +1092,12 @@ def _split_disconnected(labels: np.ndarray, pairs: np.ndarray) -> np.ndarray:
 
 
 def _vertex_normals(vertices: np.ndarray, faces: np.ndarray, face_normals: np.ndarray, areas: np.ndarray):
-    vn = np.zeros_like(vertices)
     w = face_normals * areas[:, None]
-    for k in range(3):
-        np.add.at(vn, faces[:, k], w)
-    n = np.linalg.norm(vn, axis=1)
+    # np.add.at once per corner, into zeros: bincount adds in input order (corner 0 of every face, then 1, then 2),
+    # the same sums at a tenth of the cost
+    idx = faces.T.ravel()
+    vn = np.stack([np.bincount(idx, weights=np.tile(w[:, j], 3), minlength=len(vertices)) for j in range(3)], axis=1)
+    n = row_norms(vn)  # np.linalg.norm(axis=1), bit for bit
     return vn / np.where(n > 0, n, 1.0)[:, None]
 
 
@@ -1168,7 +1170,7 @@ def _fit_members(mesh: Mesh, members: np.ndarray, vn, tolerance: float, p: int, 
 
 def _fit_triangles(V, tris, vn, tolerance: float, p: int, upto: str | None = None) -> SurfaceFit:
     """The surface of one part: its triangles ``tris`` (k, 3) (vertex ids into ``V``); ``p`` names it in the log."""
-    ids, local = np.unique(tris, return_inverse=True)
+    ids, local = _unique_inverse(tris.ravel(), len(V))  # np.unique(tris, return_inverse=True)
     memo = _FIT_MEMO.get()
     noise = memo.get("noise") if memo is not None else None
     if (MIN_FLAT_VERTICES if _noise_free() else MIN_CORNER_VERTICES) <= len(ids) < MIN_PART_VERTICES:  # `_small_faces`

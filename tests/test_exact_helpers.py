@@ -14,6 +14,7 @@ from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
 from recon.fit._surfaces import col_means, col_sums, extent, row_norms, row_sums
 from recon.fit._types import median, percentile
+from recon.mesh import clean_mesh
 from recon.mesh._clean import _extremes
 from recon.mesh._topology import stable_argsort, unique_edges, unique_rows
 
@@ -109,6 +110,23 @@ def test_unique_edges_and_extremes_are_what_they_replace():
 def _mesh():
     V, F, _ = rounded_box(size=(4.0, 3.0, 2.0), radius=0.5, spacing=0.25)
     return V, F
+
+
+def test_mesh_face_arrays_are_numpys_and_shared_with_face_geometry():
+    V, F = _mesh()
+    mesh = clean_mesh(V, F)
+    V, F = mesh.vertices, mesh.faces
+    v = V[F]
+    cr = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    area = 0.5 * np.linalg.norm(cr, axis=1)
+    assert _same(mesh.face_cross, cr)
+    assert _same(mesh.face_areas, area)
+    assert _same(mesh.face_normals, cr / (2.0 * area)[:, None])
+    assert _same(mesh.face_centroids, v.mean(axis=1))
+    g = FaceGeometry(V, F, cross=mesh.face_cross, centroid=mesh.face_centroids)
+    ref = FaceGeometry(V, F)
+    for name in ("cross", "norm", "unit", "centroid", "corners"):
+        assert _same(getattr(g, name), getattr(ref, name))
 
 
 def test_topology_and_hinge_pairs_match_the_sorting_they_replace():

@@ -36,6 +36,7 @@ from ..features import FaceGeometry, FeatureField, _feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
+from ..mesh import Mesh
 from ..mesh._topology import stable_argsort
 from ._topology import Topology, topology, unique
 from ._types import Decomposition, Part, SurfaceSkeleton
@@ -121,7 +122,9 @@ def decompose(
 
     step("features", 0.0)
     topo = topology(F, n)
-    geom = FaceGeometry(V, F)  # the face cross products, areas and normals every step uses, formed once
+    # the face cross products, areas and normals every step uses, formed once (a Mesh's own, cached for the fit stage)
+    geom = FaceGeometry(V, F, cross=mesh.face_cross, centroid=mesh.face_centroids) if isinstance(mesh, Mesh) \
+        else FaceGeometry(V, F)
     ff = features if features is not None else _feature_field(V, F, scale=scale, geom=geom, pairs=topo.twin_pairs)
     s = ff.scale
     area = geom.area

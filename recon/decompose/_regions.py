@@ -1109,7 +1109,11 @@ def fitted_regions(
     _, comp = connected_components(gph, directed=False)
     comp_area = np.bincount(comp, weights=area * smooth, minlength=m)
     order = [c for c in np.argsort(-comp_area, kind="stable") if comp_area[c] >= min_area]
-    comp_faces = [np.flatnonzero((comp == c) & smooth) for c in order]
+    # [np.flatnonzero((comp == c) & smooth) for c in order], from one sort instead of a pass over the mesh each
+    sm = np.flatnonzero(smooth)
+    by_comp = sm[stable_argsort(comp[sm], m)]
+    bounds = np.searchsorted(comp[by_comp], np.arange(m + 1))
+    comp_faces = [by_comp[bounds[c] : bounds[c + 1]] for c in order]
     ctx.comp_fits = {}
     if tolerance is None:
         tolerance = _noise_tolerance(ctx, comp_faces, noise, diag)
