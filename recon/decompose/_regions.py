@@ -1106,13 +1106,17 @@ def fitted_regions(
     keep = smooth[pairs[:, 0]] & smooth[pairs[:, 1]]
     p = pairs[keep]
     gph = sp.coo_matrix((np.ones(len(p), np.int8), (p[:, 0], p[:, 1])), shape=(m, m))
-    _, comp = connected_components(gph, directed=False)
+    n_comp, comp = connected_components(gph, directed=False)
     comp_area = np.bincount(comp, weights=area * smooth, minlength=m)
-    order = [c for c in np.argsort(-comp_area, kind="stable") if comp_area[c] >= min_area]
+    # the components of at least min_area, largest first: a stable sort of the n_comp areas alone gives them in the
+    # same order (the rest of comp_area is zeros, which a positive min_area leaves out), selected without a Python
+    # pass over all m entries
+    cand = np.argsort(-comp_area[:n_comp] if min_area > 0 else -comp_area, kind="stable")
+    order = cand[comp_area[cand] >= min_area]
     # [np.flatnonzero((comp == c) & smooth) for c in order], from one sort instead of a pass over the mesh each
     sm = np.flatnonzero(smooth)
-    by_comp = sm[stable_argsort(comp[sm], m)]
-    bounds = np.searchsorted(comp[by_comp], np.arange(m + 1))
+    by_comp = sm[stable_argsort(comp[sm], n_comp)]
+    bounds = np.searchsorted(comp[by_comp], np.arange((n_comp if min_area > 0 else m) + 1))
     comp_faces = [by_comp[bounds[c] : bounds[c + 1]] for c in order]
     ctx.comp_fits = {}
     if tolerance is None:
