@@ -201,7 +201,9 @@ def decompose(
         for k, v in remap.items():
             lut[k] = v
         labels[sel] = lut[part_of_face[sel]]
-        mid = _middle_share(V, F, labels, area, len(kinds), geom.unit)
+        # (only the linear parts' share decides anything: the patches are the largest parts, not measured)
+        mid = _middle_share(V, F, labels, area, len(kinds), geom.unit,
+                            only=[i for i in range(n_patch, len(kinds)) if kinds[i] == "linear"])
         sharp = [False] * n_patch + [bool(kinds[i] == "linear" and mid[i] < SHARP_MIDDLE_SHARE) for i in range(n_patch, len(kinds))]
         # a junction is sharp (a corner vertex) when every linear part meeting it is sharp
         bc = boundary_curves(V, topo, labels, len(kinds))  # the labels are final: the same curves as below
@@ -595,19 +597,19 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     return comp
 
 
-def _middle_share(V, F, labels, area, n_parts, nrm=None):
+def _middle_share(V, F, labels, area, n_parts, nrm=None, only=None):
     """Per part: share of area whose raw normal lies in the middle half of the part's normal range.
 
     The normals are projected on their main direction of spread (largest eigenvector of their
     covariance); the range is the 5–95 % area quantiles of that projection. ``nrm``: the unit face normals, when
-    the caller has them.
+    the caller has them. ``only``: the parts to measure (the others keep 0.5); default all.
     """
     if nrm is None:
         nrm = FaceGeometry(V, F).unit
     out = np.full(n_parts, 0.5)
     order = stable_argsort(labels, n_parts)
     bounds = np.searchsorted(labels[order], np.arange(n_parts + 1))
-    for p in range(n_parts):
+    for p in range(n_parts) if only is None else only:
         idx = order[bounds[p] : bounds[p + 1]]
         if len(idx) < 8:
             continue
