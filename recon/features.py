@@ -217,10 +217,20 @@ def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
     ``X += alpha * P``, ``P = Z + beta * P``, ...: bit-identical), so an iteration allocates only the product.
     """
     R = B - A @ X
-    dg = inv_diag[:, None]
+    n, k = R.shape
+    # the per-row and per-column factors spelt out to the full (n, k) shape: an elementwise product of two
+    # arrays of one shape (the same products) runs its inner loop over all n k values, a broadcast one over k
+    dg = np.repeat(inv_diag[:, None], k, axis=1)
     Z = dg * R
     P = Z.copy()
     tmp = np.empty_like(R)
+
+    def times_columns(c, M, out):  # np.multiply(c, M, out=out) for c (k,) and C-ordered M, out (n, k)
+        if M.flags.c_contiguous and out.flags.c_contiguous:
+            np.multiply(np.tile(c, n), M.reshape(-1), out=out.reshape(-1))
+        else:
+            np.multiply(c, M, out=out)
+
     rz = np.einsum("ij,ij->j", R, Z)
     stop = rtol * np.maximum(np.linalg.norm(B, axis=0), 1e-300)
     # np.linalg.norm(R, axis=0) is the root of np.add.reduce(R * R, axis=0), which numpy sums row by row in order
@@ -238,13 +248,13 @@ def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
             break
         AP = A @ P
         alpha = rz / np.maximum(np.einsum("ij,ij->j", P, AP), 1e-300)
-        np.multiply(alpha, P, out=tmp)
+        times_columns(alpha, P, tmp)
         X += tmp
-        np.multiply(alpha, AP, out=AP)
+        times_columns(alpha, AP, AP)
         R -= AP
         np.multiply(dg, R, out=Z)
         rz_new = np.einsum("ij,ij->j", R, Z)
-        np.multiply(rz_new / np.maximum(rz, 1e-300), P, out=P)
+        times_columns(rz_new / np.maximum(rz, 1e-300), P, P)
         np.add(Z, P, out=P)
         rz = rz_new
     else:

@@ -20,6 +20,7 @@ import scipy.sparse as sp
 
 from .decompose import Decomposition, decompose
 from .decompose._regions import _unique_inverse, split_by_fitting
+from .decompose._topology import unique
 from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
 from .fit._select import SIGMAS_PER_TOLERANCE
@@ -267,6 +268,16 @@ def _vertices_of(F: np.ndarray, tris, n: int) -> np.ndarray:
     mask = np.zeros(n, bool)
     mask[idx] = True
     return np.flatnonzero(mask)
+
+
+def _vertex_sets(F: np.ndarray, labels: np.ndarray, n: int):
+    """``lambda q: _vertices_of(F, labels == q, n)`` for every label at once: the distinct (label, vertex) pairs
+    from one sort of their packed keys (a pass over the mesh per label costs more for more than a few)."""
+    key = unique(np.repeat(labels, 3) * np.int64(n) + F.ravel())
+    lab = key // n
+    bounds = np.searchsorted(lab, np.arange(int(labels.max()) + 2))
+    vert = key - lab * n
+    return lambda q: vert[bounds[q] : bounds[q + 1]]
 
 
 def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float):
@@ -739,7 +750,8 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     analytic = np.array(sorted(q for q, f in fits.items() if f.ok and f.type in _ANALYTIC), dtype=np.int64)
     memo = _FIT_MEMO.get()
     noise = memo.get("noise") if memo is not None else None  # None: a noise-free mesh, where no surface misfits
-    scales = {q: _residual_scale(fits[q], V[_vertices_of(F, labels == q, len(V))]) for q in analytic.tolist()}
+    ids = _vertex_sets(F, labels, len(V))
+    scales = {q: _residual_scale(fits[q], V[ids(q)]) for q in analytic.tolist()}
     exact = False
     if noise is not None:
         misfits = {q: s > MISFIT_SCALE * noise for q, s in scales.items()}
