@@ -1256,7 +1256,7 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
     from ._topology import topology
 
     faces = np.asarray(faces, dtype=np.int64)
-    ids, local = np.unique(F[faces], return_inverse=True)
+    ids, local = _unique_inverse(F[faces].ravel(), len(V))  # np.unique(F[faces], return_inverse=True)
     v, f = V[ids], local.reshape(-1, 3)
     topo = topology(f, len(v))
     adj = np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(-1, 3)
