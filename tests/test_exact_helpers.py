@@ -129,6 +129,23 @@ def test_mesh_face_arrays_are_numpys_and_shared_with_face_geometry():
         assert _same(getattr(g, name), getattr(ref, name))
 
 
+def test_fit_stage_groupings_are_what_they_replace():
+    from recon.fit._select import _chord_midpoints
+    from recon.pipeline import _vertex_counts, _vertex_sets, _vertices_of
+
+    V, F = _mesh()
+    labels = np.random.default_rng(2).integers(0, 7, len(F))
+    ids = _vertex_sets(F, labels, len(V))
+    for q in range(7):
+        assert _same(ids(q), _vertices_of(F, labels == q, len(V)))
+    pairs = np.unique(np.column_stack([np.repeat(labels, 3), F.ravel()]), axis=0)
+    assert np.array_equal(_vertex_counts(F, labels), np.bincount(pairs[:, 0], minlength=7))
+    f = F[:500]
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key = np.unique(edges[:, 0] * len(V) + edges[:, 1])
+    assert _same(_chord_midpoints(V, f), 0.5 * (V[key // len(V)] + V[key % len(V)]))
+
+
 def test_topology_and_hinge_pairs_match_the_sorting_they_replace():
     V, F = _mesh()
     topo = topology(F, len(V))
