@@ -24,7 +24,7 @@ from typing import Callable
 import numpy as np
 
 from .errors import InputError
-from .mesh._topology import unique_rows
+from .mesh._topology import stable_argsort, unique_rows
 
 __all__ = [
     "CurveNetwork",
@@ -187,7 +187,7 @@ def curve_network(vertices, faces, labels) -> CurveNetwork:
     lo = np.minimum(he_a, he_b)
     hi = np.maximum(he_a, he_b)
     key = lo * n + hi
-    order = np.argsort(key, kind="stable")
+    order = stable_argsort(key, n * n)
     ukey, start, count = np.unique(key[order], return_index=True, return_counts=True)
     nonmanifold = np.stack([ukey[count > 2] // n, ukey[count > 2] % n], axis=1)
     if len(nonmanifold):
@@ -384,7 +384,7 @@ def _part_samples(parts, vertices, faces, labels):
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     norm = np.linalg.norm(cross, axis=1)
     good = norm > 0
-    order = np.argsort(labels, kind="stable")
+    order = stable_argsort(labels)
     order = order[good[order]]
     sorted_labels = labels[order]
     pts, nrms, offs = [], [], [0]

@@ -30,6 +30,7 @@ import scipy.sparse as sp
 
 from .errors import MeshError
 from .fit._surfaces import row_norms
+from .mesh._topology import stable_argsort
 
 __all__ = ["FeatureField", "feature_field", "mesh_arrays", "heat_smooth"]
 
@@ -102,12 +103,17 @@ class FaceGeometry:
     ``cross`` (m, 3) = (v1 − v0) × (v2 − v0), its length ``norm`` (m,) (twice the area) and the unit normal
     ``unit`` (m, 3) (``cross / max(norm, 1e-300)``). The same operations as each step made on its own."""
 
-    def __init__(self, vertices, faces):
-        self.cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+    def __init__(self, vertices, faces, *, cross=None, centroid=None):
+        """``cross``, ``centroid``: those arrays when the caller has them (a :class:`recon.mesh.Mesh` caches them
+        for the stages after the decomposition)."""
+        if cross is None:
+            cross = np.cross(vertices[faces[:, 1]] - vertices[faces[:, 0]], vertices[faces[:, 2]] - vertices[faces[:, 0]])
+        self.cross = cross
         self.norm = row_norms(self.cross)
         self._unit = None
         self._vf = (vertices, faces)
-        self._corners = self._centroid = None
+        self._corners = None
+        self._centroid = centroid
 
     @property
     def corners(self) -> np.ndarray:
@@ -211,10 +217,20 @@ def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
     ``X += alpha * P``, ``P = Z + beta * P``, ...: bit-identical), so an iteration allocates only the product.
     """
     R = B - A @ X
-    dg = inv_diag[:, None]
+    n, k = R.shape
+    # the per-row and per-column factors spelt out to the full (n, k) shape: an elementwise product of two
+    # arrays of one shape (the same products) runs its inner loop over all n k values, a broadcast one over k
+    dg = np.repeat(inv_diag[:, None], k, axis=1)
     Z = dg * R
     P = Z.copy()
     tmp = np.empty_like(R)
+
+    def times_columns(c, M, out):  # np.multiply(c, M, out=out) for c (k,) and C-ordered M, out (n, k)
+        if M.flags.c_contiguous and out.flags.c_contiguous:
+            np.multiply(np.tile(c, n), M.reshape(-1), out=out.reshape(-1))
+        else:
+            np.multiply(c, M, out=out)
+
     rz = np.einsum("ij,ij->j", R, Z)
     stop = rtol * np.maximum(np.linalg.norm(B, axis=0), 1e-300)
     # np.linalg.norm(R, axis=0) is the root of np.add.reduce(R * R, axis=0), which numpy sums row by row in order
@@ -232,13 +248,13 @@ def _block_pcg(A, B, X, inv_diag, rtol, maxiter=1000):
             break
         AP = A @ P
         alpha = rz / np.maximum(np.einsum("ij,ij->j", P, AP), 1e-300)
-        np.multiply(alpha, P, out=tmp)
+        times_columns(alpha, P, tmp)
         X += tmp
-        np.multiply(alpha, AP, out=AP)
+        times_columns(alpha, AP, AP)
         R -= AP
         np.multiply(dg, R, out=Z)
         rz_new = np.einsum("ij,ij->j", R, Z)
-        np.multiply(rz_new / np.maximum(rz, 1e-300), P, out=P)
+        times_columns(rz_new / np.maximum(rz, 1e-300), P, P)
         np.add(Z, P, out=P)
         rz = rz_new
     else:
@@ -303,7 +319,7 @@ def hinge_pairs(faces, n_vertices: int, order=None) -> tuple[np.ndarray, np.ndar
     end = np.roll(faces, -1, axis=1).ravel()
     key = np.minimum(start, end) * np.int64(n_vertices) + np.maximum(start, end)
     if order is None:
-        order = np.argsort(key, kind="stable")
+        order = stable_argsort(key, n_vertices * n_vertices)
     ks = key[order]
     pair = np.flatnonzero(ks[1:] == ks[:-1])
     # only edges with exactly two triangles (a non-manifold fan would pair arbitrary triangles)

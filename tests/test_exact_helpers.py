@@ -14,6 +14,9 @@ from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
 from recon.fit._surfaces import col_means, col_sums, extent, row_norms, row_sums
 from recon.fit._types import median, percentile
+from recon.mesh import clean_mesh
+from recon.mesh._clean import _extremes
+from recon.mesh._topology import stable_argsort, unique_edges, unique_rows
 
 
 def _same(a, b) -> bool:
@@ -73,9 +76,74 @@ def test_unique_is_numpys():
         assert _same(unique(x.reshape(-1, 1)), np.unique(x.reshape(-1, 1)))
 
 
+def test_stable_argsort_and_unique_rows_are_numpys():
+    rng = np.random.default_rng(7)
+    for n in (0, 1, 2, 9, 3000, 100_000):
+        for upper in (1, 2, 50, 2**20, 2**45, 2**62):
+            x = rng.integers(0, upper, n)
+            assert _same(stable_argsort(x), np.argsort(x, kind="stable"))
+            assert _same(stable_argsort(x, upper), np.argsort(x, kind="stable"))
+        for upper, d in ((3, 2), (5000, 2), (800_000, 3)):  # the last too wide to pack with the index
+            keys = rng.integers(0, upper, (n, d))
+            packed = np.zeros(n, np.int64)
+            for j in range(d):
+                packed = packed * upper + keys[:, j]
+            _, first, inverse = np.unique(packed, return_index=True, return_inverse=True)
+            got = unique_rows(keys, upper)
+            assert _same(got[0], first.astype(np.int64)) and _same(got[1], inverse.astype(np.int64))
+
+
+def test_unique_edges_and_extremes_are_what_they_replace():
+    V, F = _mesh()
+    he = F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    lo, hi = he.min(axis=1), he.max(axis=1)
+    _, first, inverse = np.unique(lo * len(V) + hi, return_index=True, return_inverse=True)
+    edges, face_edges, count = unique_edges(F, len(V))
+    assert _same(edges, np.column_stack([lo[first], hi[first]]))
+    assert _same(face_edges, inverse.reshape(-1, 3).astype(np.int64))
+    assert _same(count, np.bincount(inverse).astype(np.int64))
+    for x in _arrays(11, 5000):
+        lo, hi = _extremes(x)
+        assert _same(lo, x.min(axis=0)) and _same(hi, x.max(axis=0))
+
+
 def _mesh():
     V, F, _ = rounded_box(size=(4.0, 3.0, 2.0), radius=0.5, spacing=0.25)
     return V, F
+
+
+def test_mesh_face_arrays_are_numpys_and_shared_with_face_geometry():
+    V, F = _mesh()
+    mesh = clean_mesh(V, F)
+    V, F = mesh.vertices, mesh.faces
+    v = V[F]
+    cr = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    area = 0.5 * np.linalg.norm(cr, axis=1)
+    assert _same(mesh.face_cross, cr)
+    assert _same(mesh.face_areas, area)
+    assert _same(mesh.face_normals, cr / (2.0 * area)[:, None])
+    assert _same(mesh.face_centroids, v.mean(axis=1))
+    g = FaceGeometry(V, F, cross=mesh.face_cross, centroid=mesh.face_centroids)
+    ref = FaceGeometry(V, F)
+    for name in ("cross", "norm", "unit", "centroid", "corners"):
+        assert _same(getattr(g, name), getattr(ref, name))
+
+
+def test_fit_stage_groupings_are_what_they_replace():
+    from recon.fit._select import _chord_midpoints
+    from recon.pipeline import _vertex_counts, _vertex_sets, _vertices_of
+
+    V, F = _mesh()
+    labels = np.random.default_rng(2).integers(0, 7, len(F))
+    ids = _vertex_sets(F, labels, len(V))
+    for q in range(7):
+        assert _same(ids(q), _vertices_of(F, labels == q, len(V)))
+    pairs = np.unique(np.column_stack([np.repeat(labels, 3), F.ravel()]), axis=0)
+    assert np.array_equal(_vertex_counts(F, labels), np.bincount(pairs[:, 0], minlength=7))
+    f = F[:500]
+    edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key = np.unique(edges[:, 0] * len(V) + edges[:, 1])
+    assert _same(_chord_midpoints(V, f), 0.5 * (V[key // len(V)] + V[key % len(V)]))
 
 
 def test_topology_and_hinge_pairs_match_the_sorting_they_replace():

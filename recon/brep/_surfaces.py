@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from OCP.Geom import (
@@ -105,7 +106,7 @@ class SurfaceModel:
             h = rel @ d
             radial = rel - np.outer(h, d)
             rho = np.linalg.norm(radial, axis=1)
-            e = np.where(rho[:, None] > 1e-12, radial / np.maximum(rho, 1e-300)[:, None], _perp(d))
+            e = np.where(rho[:, None] > 1e-12, radial / np.maximum(rho, 1e-300)[:, None], self._axis_perp)
             if k == "cylinder":
                 return self.origin + np.outer(h, d) + self.radius * e, e
             if k == "torus":
@@ -126,6 +127,12 @@ class SurfaceModel:
             u = np.where(wn[:, None] > 1e-12, w / np.maximum(wn, 1e-300)[:, None], np.array([0, 0, 1.0]))
             return self.origin + self.radius * u, u
         return project_occ(self.geom, x, memo=self._memo)
+
+    @cached_property
+    def _axis_perp(self) -> np.ndarray:
+        """``_perp(axis)``: the radial direction :meth:`project` gives a point on the axis, made once (the curve
+        network projects onto each surface some fifty times)."""
+        return _perp(self.axis)
 
     def reframed(self, points) -> "SurfaceModel":
         """The same surface with its seam (and a sphere's poles) turned away from ``points (k, 3)``.

@@ -36,6 +36,8 @@ from ..features import FaceGeometry, FeatureField, _feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
+from ..mesh import Mesh
+from ..mesh._topology import stable_argsort
 from ._topology import Topology, topology, unique
 from ._types import Decomposition, Part, SurfaceSkeleton
 
@@ -120,7 +122,9 @@ def decompose(
 
     step("features", 0.0)
     topo = topology(F, n)
-    geom = FaceGeometry(V, F)  # the face cross products, areas and normals every step uses, formed once
+    # the face cross products, areas and normals every step uses, formed once (a Mesh's own, cached for the fit stage)
+    geom = FaceGeometry(V, F, cross=mesh.face_cross, centroid=mesh.face_centroids) if isinstance(mesh, Mesh) \
+        else FaceGeometry(V, F)
     ff = features if features is not None else _feature_field(V, F, scale=scale, geom=geom, pairs=topo.twin_pairs)
     s = ff.scale
     area = geom.area
@@ -197,7 +201,9 @@ def decompose(
         for k, v in remap.items():
             lut[k] = v
         labels[sel] = lut[part_of_face[sel]]
-        mid = _middle_share(V, F, labels, area, len(kinds), geom.unit)
+        # (only the linear parts' share decides anything: the patches are the largest parts, not measured)
+        mid = _middle_share(V, F, labels, area, len(kinds), geom.unit,
+                            only=[i for i in range(n_patch, len(kinds)) if kinds[i] == "linear"])
         sharp = [False] * n_patch + [bool(kinds[i] == "linear" and mid[i] < SHARP_MIDDLE_SHARE) for i in range(n_patch, len(kinds))]
         # a junction is sharp (a corner vertex) when every linear part meeting it is sharp
         bc = boundary_curves(V, topo, labels, len(kinds))  # the labels are final: the same curves as below
@@ -350,7 +356,7 @@ def _boundary_potentials(V, F, topo: Topology, patch):
     # successor of a boundary half-edge: a boundary half-edge of the same patch leaving its end vertex
     key_start = bp * np.int64(n) + start
     key_end = bp * np.int64(n) + end
-    order = np.argsort(key_start, kind="stable")
+    order = stable_argsort(key_start)
     sorted_keys = key_start[order]
     pos = np.searchsorted(sorted_keys, key_end)
     pos = np.minimum(pos, len(order) - 1)
@@ -591,19 +597,19 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     return comp
 
 
-def _middle_share(V, F, labels, area, n_parts, nrm=None):
+def _middle_share(V, F, labels, area, n_parts, nrm=None, only=None):
     """Per part: share of area whose raw normal lies in the middle half of the part's normal range.
 
     The normals are projected on their main direction of spread (largest eigenvector of their
     covariance); the range is the 5–95 % area quantiles of that projection. ``nrm``: the unit face normals, when
-    the caller has them.
+    the caller has them. ``only``: the parts to measure (the others keep 0.5); default all.
     """
     if nrm is None:
         nrm = FaceGeometry(V, F).unit
     out = np.full(n_parts, 0.5)
-    order = np.argsort(labels, kind="stable")
+    order = stable_argsort(labels, n_parts)
     bounds = np.searchsorted(labels[order], np.arange(n_parts + 1))
-    for p in range(n_parts):
+    for p in range(n_parts) if only is None else only:
         idx = order[bounds[p] : bounds[p + 1]]
         if len(idx) < 8:
             continue

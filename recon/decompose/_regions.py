@@ -40,6 +40,7 @@ from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
 from ..fit._surfaces import row_norms, row_sums
 from ._quickfit import quick_fit, surface_normals
+from ..mesh._topology import stable_argsort
 from ._topology import unique
 
 __all__ = ["Regions", "fitted_regions", "split_by_fitting"]
@@ -719,7 +720,7 @@ def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -
     refinement passes most regions do not change, and the same fit on the same triangles is the same result.
     With ``ctx.worker`` about half of the fits (by size) are made there."""
     out = list(fits)
-    order = np.argsort(label, kind="stable")
+    order = stable_argsort(label + 1, len(fits) + 1)  # (the order of label itself: -1 marks no region)
     bounds = np.searchsorted(label[order], np.arange(len(fits) + 1))
     todo = []
     for r, fit in enumerate(fits):
@@ -1105,10 +1106,18 @@ def fitted_regions(
     keep = smooth[pairs[:, 0]] & smooth[pairs[:, 1]]
     p = pairs[keep]
     gph = sp.coo_matrix((np.ones(len(p), np.int8), (p[:, 0], p[:, 1])), shape=(m, m))
-    _, comp = connected_components(gph, directed=False)
+    n_comp, comp = connected_components(gph, directed=False)
     comp_area = np.bincount(comp, weights=area * smooth, minlength=m)
-    order = [c for c in np.argsort(-comp_area, kind="stable") if comp_area[c] >= min_area]
-    comp_faces = [np.flatnonzero((comp == c) & smooth) for c in order]
+    # the components of at least min_area, largest first: a stable sort of the n_comp areas alone gives them in the
+    # same order (the rest of comp_area is zeros, which a positive min_area leaves out), selected without a Python
+    # pass over all m entries
+    cand = np.argsort(-comp_area[:n_comp] if min_area > 0 else -comp_area, kind="stable")
+    order = cand[comp_area[cand] >= min_area]
+    # [np.flatnonzero((comp == c) & smooth) for c in order], from one sort instead of a pass over the mesh each
+    sm = np.flatnonzero(smooth)
+    by_comp = sm[stable_argsort(comp[sm], n_comp)]
+    bounds = np.searchsorted(comp[by_comp], np.arange((n_comp if min_area > 0 else m) + 1))
+    comp_faces = [by_comp[bounds[c] : bounds[c + 1]] for c in order]
     ctx.comp_fits = {}
     if tolerance is None:
         tolerance = _noise_tolerance(ctx, comp_faces, noise, diag)
@@ -1247,7 +1256,7 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
     from ._topology import topology
 
     faces = np.asarray(faces, dtype=np.int64)
-    ids, local = np.unique(F[faces], return_inverse=True)
+    ids, local = _unique_inverse(F[faces].ravel(), len(V))  # np.unique(F[faces], return_inverse=True)
     v, f = V[ids], local.reshape(-1, 3)
     topo = topology(f, len(v))
     adj = np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(-1, 3)

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..mesh._topology import stable_argsort
+
 __all__ = ["Topology", "topology", "unique"]
 
 
@@ -64,7 +66,7 @@ def topology(faces: np.ndarray, n_vertices: int) -> Topology:
     key = lo * np.int64(n_vertices) + hi
     # np.unique(key, return_inverse=True, return_counts=True) from one stable argsort, which also orders the
     # half-edges by edge (the stable argsort of the inverse is that of the keys)
-    order = np.argsort(key, kind="stable")
+    order = stable_argsort(key, n_vertices * n_vertices)
     aux = key[order]
     mask = np.empty(len(aux), bool)
     mask[:1] = True

@@ -7,7 +7,34 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["unique_edges", "halfedge_order", "manifold_pairs", "unique_rows"]
+__all__ = ["unique_edges", "halfedge_order", "manifold_pairs", "unique_rows", "stable_argsort", "unique_first"]
+
+_INT64_MAX = np.iinfo(np.int64).max
+
+
+def stable_argsort(keys: np.ndarray, upper: int | None = None) -> np.ndarray:
+    """``np.argsort(keys, kind="stable")`` of a 1-D array of integers in ``[0, upper)``: the same permutation.
+
+    When ``upper · len(keys)`` fits in an int64, the keys are packed with their index (``key · n + i``, all
+    distinct, ordered by key and then by index: the stable order) and sorted by numpy's default sort, which is
+    vectorised (AVX-512 / AVX2) where the stable one is not: 2 ms against 26 ms for 310k keys. ``upper``:
+    default ``keys.max() + 1``.
+    """
+    keys = np.asarray(keys)
+    n = len(keys)
+    if n == 0 or keys.dtype.kind not in "iu":
+        return np.argsort(keys, kind="stable")
+    if upper is None:
+        if int(keys.min()) < 0:
+            return np.argsort(keys, kind="stable")
+        upper = int(keys.max()) + 1
+    if upper > _INT64_MAX // n:
+        return np.argsort(keys, kind="stable")
+    packed = keys.astype(np.int64) * np.int64(n)
+    packed += np.arange(n, dtype=np.int64)
+    packed.sort()
+    packed %= np.int64(n)
+    return packed
 
 
 def unique_rows(keys: np.ndarray, upper: int) -> tuple[np.ndarray, np.ndarray]:
@@ -33,10 +60,43 @@ def unique_rows(keys: np.ndarray, upper: int) -> tuple[np.ndarray, np.ndarray]:
         packed = np.zeros(len(keys), dtype=np.int64)
         for j in range(d):
             packed = packed * np.int64(max(upper, 1)) + keys[:, j]
-        _, first, inverse = np.unique(packed, return_index=True, return_inverse=True)
+        first, inverse = _unique_first_inverse(packed, max(upper, 1) ** d)
     else:
         _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
     return first.astype(np.int64), inverse.reshape(-1).astype(np.int64)
+
+
+def unique_first(keys: np.ndarray, upper: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_index=True)`` of a 1-D array of integers in ``[0, upper)``: the distinct values and
+    the index of each one's first occurrence, from :func:`stable_argsort` (numpy's own steps after its sort)."""
+    keys = np.asarray(keys)
+    perm = stable_argsort(keys, upper)
+    aux = keys[perm]
+    mask = np.empty(len(aux), dtype=bool)
+    mask[:1] = True
+    np.not_equal(aux[1:], aux[:-1], out=mask[1:])
+    return aux[mask], perm[mask]
+
+
+def _unique_first_inverse(keys: np.ndarray, upper: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(keys, return_index=True, return_inverse=True)[1:]`` of int keys in ``[0, upper)``: numpy's own
+    steps (``_unique1d``) on the permutation of :func:`stable_argsort`, which is the one numpy's stable sort gives.
+
+    Keys too wide to pack with their index (the weld's grid cells) are grouped by numpy's unstable sort, which
+    gives the same groups and inverse (it orders the distinct keys alike), and each group's first index is then
+    found from the group ids, which do pack."""
+    n = len(keys)
+    wide = n > 0 and upper > _INT64_MAX // n
+    perm = np.argsort(keys) if wide else stable_argsort(keys, upper)
+    aux = keys[perm]
+    mask = np.empty(n, dtype=bool)
+    mask[:1] = True
+    np.not_equal(aux[1:], aux[:-1], out=mask[1:])
+    inverse = np.empty(n, dtype=np.intp)
+    inverse[perm] = np.cumsum(mask) - 1
+    if wide:
+        return _unique_first_inverse(inverse, int(mask.sum()))[0], inverse
+    return perm[mask], inverse
 
 
 def unique_edges(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -56,9 +116,11 @@ def unique_edges(faces: np.ndarray, n_vertices: int) -> tuple[np.ndarray, np.nda
     count : (k,) int
         Number of half-edges (triangles) on each edge.
     """
-    he = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    lo = he.min(axis=1)
-    hi = he.max(axis=1)
+    # half-edge 3 f + i runs from faces[f, i] to faces[f, (i + 1) % 3]; the ends' min and max element-wise (a
+    # reduction along an axis of 2 costs ~10x as much; the same values)
+    start, end = faces.ravel(), faces[:, [1, 2, 0]].ravel()
+    lo = np.minimum(start, end)
+    hi = np.maximum(start, end)
     first, inverse = unique_rows(np.column_stack([lo, hi]), n_vertices)
     edges = np.column_stack([lo[first], hi[first]])
     count = np.bincount(inverse, minlength=len(first)).astype(np.int64)
@@ -75,7 +137,7 @@ def halfedge_order(face_edges: np.ndarray, count: np.ndarray) -> tuple[np.ndarra
     start : (k + 1,) int
         Edge ``e`` owns ``order[start[e]:start[e + 1]]``.
     """
-    order = np.argsort(face_edges.ravel(), kind="stable")
+    order = stable_argsort(face_edges.ravel(), len(count))
     start = np.zeros(len(count) + 1, dtype=np.int64)
     np.cumsum(count, out=start[1:])
     return order, start

@@ -12,6 +12,8 @@ from functools import cached_property
 
 import numpy as np
 
+from ..fit._surfaces import row_norms
+
 __all__ = ["Mesh", "CleanReport", "VertexFaces"]
 
 
@@ -165,27 +167,38 @@ class Mesh:
 
     @cached_property
     def _cross(self) -> np.ndarray:
-        v = self.vertices[self.faces]
-        return np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+        V, F = self.vertices, self.faces
+        return np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+
+    @property
+    def face_cross(self) -> np.ndarray:
+        """(m, 3) float: ``(v1 − v0) × (v2 − v0)`` of every triangle (twice its area long), made once and shared
+        (the decomposition's :class:`recon.features.FaceGeometry` starts from it)."""
+        return self._cross
 
     @cached_property
     def face_areas(self) -> np.ndarray:
         """(m,) float: triangle areas."""
-        return 0.5 * np.linalg.norm(self._cross, axis=1)
+        return 0.5 * row_norms(self._cross)  # np.linalg.norm(axis=1), bit for bit
 
     @cached_property
     def face_normals(self) -> np.ndarray:
         """(m, 3) float: unit normals (right-hand rule on ``faces``); zero for a triangle of zero area."""
         norm = 2.0 * self.face_areas
-        out = np.zeros_like(self._cross)
         ok = norm > 0
+        if ok.all():  # (a cleaned mesh has no zero-area triangle: the same quotients without the masked copies)
+            return self._cross / norm[:, None]
+        out = np.zeros_like(self._cross)
         out[ok] = self._cross[ok] / norm[ok, None]
         return out
 
     @cached_property
     def face_centroids(self) -> np.ndarray:
         """(m, 3) float: mean of each triangle's corners."""
-        return self.vertices[self.faces].mean(axis=1)
+        # vertices[faces].mean(axis=1) bit for bit: numpy adds the three corners in order and divides by 3; by
+        # columns (its reduction along an axis of 3 costs ~5x as much)
+        V, F = self.vertices, self.faces
+        return ((V[F[:, 0]] + V[F[:, 1]]) + V[F[:, 2]]) / 3
 
     @property
     def area(self) -> float:
