@@ -315,6 +315,8 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
             if fp.type != fq.type and not _probe_fits(mesh, members, tolerance, upto):
                 continue
             fit = _fit_members(mesh, members, _memo_vertex_normals(mesh), tolerance, p, upto)
+            if fit and fit.type not in (fp.type, fq.type) and _both_exact(mesh, labels, fits, p, q, tolerance):
+                continue  # (see below)
             if fit and not _misfits(fit, mesh.vertices[_vertices_of(mesh.faces, members, len(mesh.vertices))]):
                 labels[labels == q] = p
                 fits[p] = fit
@@ -324,6 +326,33 @@ def merge_same_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance:
         if not merged:
             break
     return labels, fits
+
+
+def _both_exact(mesh: Mesh, labels: np.ndarray, fits: dict, p: int, q: int, tolerance: float) -> bool:
+    """Whether faces ``p`` and ``q`` both fit their own surfaces to round-off on a mesh whose vertices are exact
+    (a CAD export; :func:`grow_faces`' test). Their union then is two faces even where a third type holds it
+    too: on the ABC model a fillet's cylinder strip and the plane strip beside it, long triangles whose
+    vertices are on three circles, merged into a sphere of about the fillet's radius."""
+    from .fit._select import _residual_scale
+
+    if not _noise_free():
+        return False
+    V, F = mesh.vertices, mesh.faces
+    own = [_residual_scale(fits[r], V[_vertices_of(F, labels == r, len(V))]) for r in (p, q)]
+    return max(own) <= EXACT_MISFIT * tolerance and _exact_vertices(mesh, labels, fits, tolerance)
+
+
+def _exact_vertices(mesh: Mesh, labels: np.ndarray, fits: dict, tolerance: float) -> bool:
+    """Whether the mesh's vertices lie on their surfaces to round-off, as a CAD export's do: the median robust
+    residual of its analytic faces is under :data:`EXACT_RESIDUAL` tolerances (:func:`grow_faces`' test)."""
+    from .fit._select import _residual_scale
+
+    if not _noise_free():
+        return False
+    V, F = mesh.vertices, mesh.faces
+    scales = [_residual_scale(f, V[_vertices_of(F, labels == r, len(V))]) for r, f in fits.items()
+              if f.ok and f.type in _ANALYTIC]
+    return bool(scales) and float(np.median(scales)) <= EXACT_RESIDUAL * tolerance
 
 
 #: Bands of one round surface (:func:`merge_round_bands`): cylinders (or a cylinder and a sphere) whose radii agree
@@ -518,11 +547,16 @@ def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: flo
     area = mesh.face_areas
     out = labels
     noise_free = _noise_free()
+    exact = None  # (whether the vertices are exact: asked once, when a B-spline face has regions in it)
     for p, fit in sorted(fits.items()):
         if fit.ok and not (noise_free and fit.type == "bspline"):
             continue
         tris = np.flatnonzero(labels == p)
         total, found = _grown_inside(mesh, tris, tolerance=tolerance, min_share=SPLIT_MIN_SHARE)
+        if noise_free and fit.type == "bspline" and found and exact is None:
+            exact = _exact_vertices(mesh, labels, fits, tolerance)
+        if exact and fit.type == "bspline" and found:
+            found = found + _exact_strips(mesh, tris, found, pairs, tolerance)
         if len(found) < 2 or sum(area[r].sum() for r, _ in found) < SPLIT_COVER * total:
             continue
         trial = out.copy()
@@ -542,6 +576,43 @@ def split_unfitted(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: flo
             continue
         log.info("part %d fits no surface: split into %d (%s)", p, len(new), ", ".join(pieces[q].type for q in new))
         out = trial
+    return out
+
+
+def _exact_strips(mesh: Mesh, tris: np.ndarray, found: list, pairs: np.ndarray, tolerance: float) -> list:
+    """On a mesh with exact vertices: the faces left in a B-spline face beside the regions ``found`` in it, where these are
+    strips too thin for regions to grow in (the ABC model: a plane, then a fillet and a plane each one or two long
+    triangles wide, 6 % and 0.7 % of the area). Coplanar pieces of at least :data:`MIN_PART_VERTICES` vertices are
+    planes; each connected remainder of as many vertices is one surface if an analytic type fits it within
+    tolerance. ``[(faces, fit)]``, or ``[]`` unless every remainder that large fits.
+    """
+    V, F = mesh.vertices, mesh.faces
+    rest = np.setdiff1d(tris, np.concatenate([r for r, _ in found]))
+    if not len(rest):
+        return []
+    big = lambda g: len(_vertices_of(F, g, len(V))) >= MIN_PART_VERTICES  # noqa: E731
+    # (neighbours within tolerance of each other's plane chain round a finely cut fillet too: a plane must hold it)
+    out = [(g, fit_plane(V[_vertices_of(F, g, len(V))], tolerance=tolerance))
+           for g in _coplanar_pieces(V, F, rest, pairs, tolerance) if big(g)]
+    out = [(g, s) for g, s in out if s.ok]
+    flats = [g for g, _ in out]
+    others = np.setdiff1d(rest, np.concatenate(flats)) if flats else rest
+    if len(others):
+        inside = np.isin(pairs[:, 0], others) & np.isin(pairs[:, 1], others)
+        local = np.full(len(F), -1, dtype=np.int64)
+        local[others] = np.arange(len(others))
+        a, b = local[pairs[inside, 0]], local[pairs[inside, 1]]
+        _, comp = sp.csgraph.connected_components(
+            sp.coo_matrix((np.ones(len(a)), (a, b)), shape=(len(others),) * 2), directed=False)
+        vn = _memo_vertex_normals(mesh)
+        for c in np.unique(comp):
+            g = others[comp == c]
+            if not big(g):
+                continue  # (a few triangles: they join the region they touch most)
+            surface = _fit_members(mesh, g, vn, tolerance, -1, _ANALYTIC[-1])
+            if not (surface and surface.ok and surface.type in _ANALYTIC):
+                return []
+            out.append((g, surface))
     return out
 
 

@@ -664,3 +664,56 @@ def test_a_thin_plate_s_holes_are_cylinders(thickness):
     assert radii == pytest.approx([3.0, 5.0], rel=1e-4)
     assert result.brep.validity.ok
     assert result.brep.validity.volume == pytest.approx(thickness * (60 * 40 - np.pi * (25 + 9)), rel=1e-3)
+
+
+def test_on_exact_vertices_two_faces_are_not_merged_into_a_third_type():
+    """A plane running into a cylinder of radius 1, both exact to round-off: at a tolerance of 0.02 a sphere holds
+    their union too (the ABC model: a fillet's cylinder strip and the plane strip beside it, long triangles with
+    their vertices on three circles, became one sphere). On exact vertices two faces that each fit their own
+    surface to round-off are two faces: they stay a plane and a cylinder."""
+    from recon.pipeline import _FIT_MEMO, _fit_parts, merge_same_surface
+
+    mesh, truth, _ = _plane_and_fillet()
+    token = _FIT_MEMO.set({"noise": None})
+    try:
+        fits = _fit_parts(mesh, truth, tolerance=0.02)
+        assert [fits[0].type, fits[1].type] == ["plane", "cylinder"]
+        labels, left = merge_same_surface(mesh, truth, fits, tolerance=0.02)
+    finally:
+        _FIT_MEMO.reset(token)
+    np.testing.assert_array_equal(labels, truth)
+    assert [left[0].type, left[1].type] == ["plane", "cylinder"]
+
+
+def test_thin_strips_left_in_a_b_spline_face_are_their_own_surfaces_on_exact_vertices():
+    """A CAD export's long triangles: a plane (25 facets) runs into a fillet of radius 0.05 (8 facets of 11.25°)
+    and on into a vertical plane strip (8 facets of 0.005), each facet one pair of triangles 0.4 long. Regions
+    grow in the plane only: the fillet and the strip are one triangle pair wide. What is left beside the plane
+    is the strip, whose triangles are coplanar (a plane), and the fillet (a cylinder of radius 0.05), both
+    exact — the ABC model's two B-spline faces were such a plane, fillet and strip."""
+    from recon.mesh import clean_mesh
+    from recon.pipeline import _FIT_MEMO, _faces_adjacency, _exact_strips, fit_plane
+
+    r = 0.05
+    t = np.deg2rad(np.arange(11.25, 90.1, 11.25))
+    profile = ([(u, 0.0) for u in np.arange(-0.5, 0.0, 0.02)] + [(0.0, 0.0)]
+               + [(r * np.sin(a), r - r * np.cos(a)) for a in t] + [(r, r + 0.005 * k) for k in range(1, 9)])
+    n = len(profile)
+    V = np.array([(u, y, z) for y in (0.0, 0.4) for (u, z) in profile])
+    F = np.array([tri for i in range(n - 1) for tri in ((i, i + 1, n + i + 1), (i, n + i + 1, n + i))])
+    mesh = clean_mesh(V, F)
+    c = mesh.face_centroids
+    plane, strip = np.flatnonzero(c[:, 2] < 1e-12), np.flatnonzero(np.isclose(c[:, 0], r))
+    fillet = np.setdiff1d(np.arange(len(F)), np.concatenate([plane, strip]))
+    assert (len(plane), len(fillet), len(strip)) == (50, 16, 16)
+    tolerance = 5e-4
+    token = _FIT_MEMO.set({"noise": None})
+    try:
+        found = [(plane, fit_plane(mesh.vertices[np.unique(mesh.faces[plane])], tolerance=tolerance))]
+        out = _exact_strips(mesh, np.arange(len(F)), found, _faces_adjacency(mesh), tolerance)
+    finally:
+        _FIT_MEMO.reset(token)
+    assert [s.type for _, s in out] == ["plane", "cylinder"]
+    np.testing.assert_array_equal(out[0][0], strip)
+    np.testing.assert_array_equal(out[1][0], fillet)
+    assert out[1][1].params["radius"] == pytest.approx(r, rel=1e-9)
