@@ -587,7 +587,7 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
         new = _fit_parts(mesh, trial, tolerance=tolerance, only=[p], upto=_ANALYTIC[-1])
         if not new[p].ok or new[p].type not in simpler:
             continue
-        new.update(_fit_parts(mesh, trial, tolerance=tolerance, only=receivers))
+        new.update(_receivers_fits(mesh, trial, receivers, fits, tolerance))
         if not all(new[q].ok and new[q].type == fits[q].type for q in receivers):
             # the slivers given back must not change what their face is (box_fillet noisy20: a fillet's
             # cylinder became a cone, whose face then failed and cost 2 % of the volume) — but the rest may be
@@ -601,6 +601,22 @@ def trim_to_surface(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: fl
         log.info("face %d was a %s: cut back to a %s, %d triangles to %d neighbours, %d planar pieces kept as faces",
                  p, fit.type, new[p].type, len(rest), len(receivers), len(corners))
         out = trial
+    return out
+
+
+def _receivers_fits(mesh: Mesh, labels: np.ndarray, receivers: list, fits: dict, tolerance: float) -> dict:
+    """The surfaces of the faces ``receivers`` under ``labels``, for the test whether each still fits its type of
+    ``fits`` within tolerance: an analytic one by the analytic types alone (:func:`_fit_parts` ``upto`` the last).
+
+    The test's answer is the full fit's: the analytic types are tried the same way, and the full fit only goes on
+    to a B-spline where none of them fits, which fails the test all the same. A trial the test refuses then costs
+    no B-spline, and one it accepts costs no second fit (:func:`_fit_members` takes the full fit from this one).
+    """
+    analytic = [q for q in receivers if fits[q].type in _ANALYTIC]
+    out = _fit_parts(mesh, labels, tolerance=tolerance, only=analytic, upto=_ANALYTIC[-1]) if analytic else {}
+    rest = [q for q in receivers if fits[q].type not in _ANALYTIC]
+    if rest:
+        out.update(_fit_parts(mesh, labels, tolerance=tolerance, only=rest))
     return out
 
 
@@ -827,7 +843,7 @@ def grow_faces(mesh: Mesh, labels: np.ndarray, fits: dict, *, tolerance: float, 
     if not moved.any():
         return labels
     receivers = sorted(set(out[moved].tolist()))
-    new = _fit_parts(mesh, out, tolerance=tolerance, only=receivers)
+    new = _receivers_fits(mesh, out, receivers, fits, tolerance)
     refused = [q for q in receivers if not (new[q].ok and new[q].type == fits[q].type)]
     if refused:
         undo = moved & np.isin(out, refused)
@@ -1132,9 +1148,18 @@ def _fit_members(mesh: Mesh, members: np.ndarray, vn, tolerance: float, p: int, 
     memo = _FIT_MEMO.get()
     if memo is None:
         return _fit_triangles(mesh.vertices, mesh.faces[members], vn, tolerance, p, upto)
-    key = (float(tolerance), upto, hashlib.sha1(np.asarray(members, dtype=np.int64).tobytes()).digest())
+    digest = hashlib.sha1(np.asarray(members, dtype=np.int64).tobytes()).digest()
+    key = (float(tolerance), upto, digest)
     if key not in memo:
-        memo[key] = _fit_triangles(mesh.vertices, mesh.faces[members], vn, tolerance, p, upto)
+        # The full fit and the fit of every analytic type (upto the last) try the same analytic types in the same
+        # way, and differ only where none fits (then the full fit goes on to a B-spline): one's analytic fit
+        # within tolerance is the other's (rocker-arm2500: 13 faces fitted twice, once by each).
+        other = memo.get((float(tolerance), _ANALYTIC[-1] if upto is None else None, digest)) \
+            if upto in (None, _ANALYTIC[-1]) else None
+        if other is not None and other.ok and other.type in _ANALYTIC:
+            memo[key] = other
+        else:
+            memo[key] = _fit_triangles(mesh.vertices, mesh.faces[members], vn, tolerance, p, upto)
     return memo[key]
 
 
