@@ -6,6 +6,7 @@ judges a reconstruction by (faces by type, deviation from the mesh, validity, ti
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import logging
 import os
@@ -17,6 +18,11 @@ from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
+
+try:  # (installed with build123d, through scikit-learn)
+    from threadpoolctl import threadpool_limits
+except ImportError:  # pragma: no cover - without it BLAS keeps its threads: slower, the same results
+    threadpool_limits = None
 
 from .decompose import Decomposition, decompose
 from .decompose._regions import split_by_fitting
@@ -1293,8 +1299,26 @@ def convert(
     return Conversion(report, mesh, dec, labels, fits, brep)
 
 
+def _one_blas_thread():
+    """A context in which BLAS and LAPACK run on one thread (threadpoolctl; nothing without it).
+
+    The fit stage's least-squares fits take an SVD of a Jacobian of up to 2,000 × 7 every iteration: OpenBLAS
+    splits one that size over its threads, and on a shared machine waking and joining them costs more than the
+    SVD (2,000 × 7: 0.1 ms on one thread, 1-3 ms on two with the other core busy). The blocks each thread computes
+    are the ones one thread computes in turn: the same results (crank's and every bench mesh's fits bit for bit).
+    """
+    if threadpool_limits is None:  # pragma: no cover
+        return contextlib.nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")
+
+
 def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[np.ndarray, dict]:
     """The fit stage: the face label of every triangle and the surface of every face."""
+    with _one_blas_thread():
+        return _faces_and_fits_in(mesh, dec, tolerance)
+
+
+def _faces_and_fits_in(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[np.ndarray, dict]:
     # On a noisy mesh the tolerance is the noise's 4σ; on a noise-free one (the decomposition measures σ = 0:
     # casting, the clean fixtures) it is a floor and the residuals are the tessellation's, not noise.
     token = _FIT_MEMO.set({"noise": tolerance / SIGMAS_PER_TOLERANCE if dec.noise > 0 else None})
