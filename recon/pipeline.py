@@ -1222,7 +1222,8 @@ def convert(
     progress : callable(stage, fraction), optional
         Called with a stage name from :data:`STAGES` and 0.0 when it starts, 1.0 when it ends.
     jobs : int, optional
-        Processes the decomposition may use (default: the cores available; see :func:`recon.decompose.decompose`).
+        Processes the decomposition and the curve network's placement may use (default: the cores available; see
+        :func:`recon.decompose.decompose`, :func:`recon.brep.build_solid`).
 
     Returns
     -------
@@ -1273,7 +1274,7 @@ def convert(
     try:
         areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
         brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
-                           part_areas={p: float(a) for p, a in enumerate(areas)})
+                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs)
     except BrepError:
         raise
     times["brep"] = time.perf_counter() - t

@@ -1070,7 +1070,7 @@ def _fallback_face_through(loops, edges, points, normals, context, *, precision:
 
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 part_kinds: Mapping[int, str] | None = None,
-                part_areas: Mapping[int, float] | None = None) -> BrepResult:
+                part_areas: Mapping[int, float] | None = None, jobs: int | None = None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
@@ -1087,6 +1087,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     part_areas : mapping part id → float, optional
         The mesh area of each part. A face whose area is off it by more than :data:`AREA_RATIO_WARNING` either
         way is named in the warnings.
+    jobs : int, optional
+        Processes to place the curve network with (at most two are used; default: the cores available). The
+        result does not depend on it.
 
     Returns
     -------
@@ -1127,7 +1130,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     # neighbour well away from the mesh (pocket coarse: the fillet ring's B-spline, its face then
     # self-intersecting), where the mesh's own boundary is the better guess.
     trusted = {p for p in network.parts.tolist() if models[p] is not None and bool(getattr(surfaces[p], "ok", True))}
-    geo = network_geometry(network, project, tolerance=tolerance, refine=trusted)
+    if jobs is None:
+        jobs = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    geo = network_geometry(network, project, tolerance=tolerance, refine=trusted, jobs=jobs)
     builder = BRep_Builder()
 
     # Shared vertices and edges: each made once.
