@@ -610,7 +610,7 @@ def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float
 
 
 def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: float, iterations: int = 6,
-                     max_points: int = 64, fit_curve=None, refine=None) -> NetworkGeometry:
+                     max_points: int = 64, fit_curve=None, refine=None, jobs: int = 1) -> NetworkGeometry:
     """Place the network on its surfaces and fit each edge.
 
     Parameters
@@ -631,6 +631,9 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         added where its chords stray from the edge (:func:`_refined`), and a smooth curve that strays from its
         points gives way to them (:func:`_strays`), only when both its parts are in it (an open boundary: its
         one part). Default: every part.
+    jobs : int
+        Processes to place the edges with: two at most (a forked second one, on Linux; see
+        :func:`_in_two_processes`). The result does not depend on it.
 
     Returns
     -------
@@ -648,8 +651,8 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
     for v in range(network.n_vertices):
         points[v], vgap[v] = meeting_point(network.points[v], vparts[v], project, limit=limit)
 
-    out, offs, egap, curves = [], [0], [], []
-    for e in range(network.n_edges):
+    def edge(e):  # (points, gap to the surfaces, curve, what to log) of edge e
+        notes = []
         poly = network.polyline(e)
         a, b = network.edge_vertices[e]
         closed = a == b
@@ -673,23 +676,113 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
             for p in (left, right):
                 if p != OUTSIDE:
                     gap = max(gap, float(np.max(np.linalg.norm(project(int(p), inner)[0] - inner, axis=1))))
-        egap.append(gap)
-        out.append(pts)
-        offs.append(offs[-1] + len(pts))
         try:
             curve = fit_curve(pts, closed=bool(closed), tolerance=tolerance)
         except InputError as err:  # a degenerate edge (all its points coincide): the B-rep reports it
-            log.info("network_geometry: edge %d: %s", e, err)
-            curves.append(EdgeCurve("line", {"start": pts[0].copy(), "end": pts[-1].copy()}, float("inf")))
-            continue
+            notes.append(f"network_geometry: edge {e}: {err}")
+            return pts, gap, EdgeCurve("line", {"start": pts[0].copy(), "end": pts[-1].copy()}, float("inf")), notes
         if trusted and _strays(curve, pts, int(left), int(right), project, tolerance):
-            log.info("network_geometry: edge %d: its smooth curve strays from its points and their surfaces: "
-                     "the polyline is the edge", e)
+            notes.append(f"network_geometry: edge {e}: its smooth curve strays from its points and their surfaces: "
+                         "the polyline is the edge")
             curve = polyline_curve(pts)
+        return pts, gap, curve, notes
+
+    # Every edge is placed on its own (the projections depend on the point alone): a second process can place
+    # some while this one places the others, with the same result.
+    done = _in_two_processes(network.n_edges, edge) if jobs > 1 and network.n_edges > 1 else {}
+    out, offs, egap, curves = [], [0], [], []
+    for e in range(network.n_edges):
+        pts, gap, curve, notes = done[e] if e in done else edge(e)
+        for note in notes:
+            log.info("%s", note)
+        egap.append(gap)
+        out.append(pts)
+        offs.append(offs[-1] + len(pts))
         curves.append(curve)
     return NetworkGeometry(points=points, vertex_gap=vgap, coords=np.concatenate(out) if out else np.empty((0, 3)),
                            offsets=np.asarray(offs, dtype=np.int64), edge_gap=np.asarray(egap),
                            curves=tuple(curves))
+
+
+#: Seconds the first process waits at least for the second's answer once its own share is done (else twice the
+#: time its own share took): a second process that hangs (forked from a threaded one: a lock held at the fork)
+#: costs this, and its edges are placed by the first.
+SECOND_PROCESS_GRACE = 30.0
+
+
+def _in_two_processes(n: int, one: Callable[[int], object]) -> dict:
+    """``{i: one(i)}`` for some of ``i`` in 0 … n − 1, made by this process and a forked second one, each taking
+    the next ``i`` not yet taken; the ``i`` missing are the caller's to make (all of them where no second process
+    can be had: not on Linux, inside a daemonic process, a failed fork; or the second one died or failed).
+
+    ``one`` must depend on ``i`` and the state at the fork alone (what the second process changes is lost), and
+    give picklable answers. An exception in ``one`` here propagates; there, the second process stops and its
+    ``i`` are left to the caller, who meets the same exception.
+    """
+    import multiprocessing
+    import pickle
+    import sys
+    import time
+
+    if not sys.platform.startswith("linux"):  # (macOS's system libraries are not safe in a forked child)
+        return {}
+    mp = multiprocessing.get_context("fork")
+    counter, lock = mp.RawValue("q", 0), mp.Lock()
+
+    def take():
+        with lock:
+            i = counter.value
+            counter.value = i + 1
+        return i
+
+    def serve(conn):
+        made = {}
+        try:
+            while (i := take()) < n:
+                made[i] = one(i)
+        except BaseException:  # noqa: BLE001  (what it made is still good; the caller makes the rest)
+            pass
+        finally:
+            conn.send(made)
+            conn.close()
+
+    recv, send = mp.Pipe(duplex=False)
+    try:
+        proc = mp.Process(target=serve, args=(send,), daemon=True, name="recon-network")
+        proc.start()
+    except (OSError, AssertionError) as err:  # multiprocessing asserts that a daemon has no children
+        log.info("network_geometry: no second process (%s)", err or type(err).__name__)
+        return {}
+    finally:
+        send.close()
+    made = {}
+    start = time.monotonic()
+    while (i := take()) < n:
+        made[i] = one(i)
+    now = time.monotonic()
+    # it has one item left at most: waiting longer than this process took for all of its own means it hangs
+    give_up = now + max(SECOND_PROCESS_GRACE, 2.0 * (now - start))
+    theirs = {}
+    try:
+        while True:
+            if recv.poll(0.01):
+                theirs = recv.recv()
+                break
+            if not proc.is_alive():  # (its answer may still be on its way)
+                give_up = min(give_up, time.monotonic() + 1.0)
+            if time.monotonic() > give_up:
+                log.warning("network_geometry: the second process gave no answer; its edges are placed here")
+                break
+    except (EOFError, OSError, pickle.UnpicklingError):
+        theirs = {}
+    finally:
+        recv.close()
+        proc.join(timeout=1.0)
+        if proc.is_alive():
+            proc.kill()
+            proc.join()
+    made.update(theirs)
+    return made
 
 
 #: How far (in tolerances) a smooth edge curve may stray from its polyline before it is checked against the

@@ -244,6 +244,47 @@ def test_coarse_chords_are_refined_onto_the_surfaces_edge():
     assert all(plain.curves[e].kind == "line" for e in rims)
 
 
+def test_two_processes_place_the_network_as_one_does():
+    """Differential: the edges placed by two processes (the second forked, each taking the next edge) are the ones
+    one process places, bit for bit; and an edge the second process cannot place (it raises there) is placed by
+    the first."""
+    import os
+
+    from recon.curves import _in_two_processes
+
+    radius, height, tol = 1.0, 1.0, 1e-3
+    parent = os.getpid()
+
+    def project(part, pts):
+        if part >= 4:
+            z = height if part == 4 else 0.0
+            return np.column_stack([pts[:, :2], np.full(len(pts), z)]), np.tile([0.0, 0.0, 1.0], (len(pts), 1))
+        e = pts[:, :2] / np.linalg.norm(pts[:, :2], axis=1)[:, None]
+        return np.column_stack([radius * e, pts[:, 2]]), np.column_stack([e, np.zeros(len(pts))])
+
+    v, f, labels = _square_prism_on_cylinder(radius, height)
+    net = curve_network(v, f, labels)
+    one = network_geometry(net, project, tolerance=tol, jobs=1)
+    two = network_geometry(net, project, tolerance=tol, jobs=2)
+    np.testing.assert_array_equal(two.coords, one.coords)
+    np.testing.assert_array_equal(two.offsets, one.offsets)
+    np.testing.assert_array_equal(two.edge_gap, one.edge_gap)
+    assert [c.kind for c in two.curves] == [c.kind for c in one.curves]
+    for a, b in zip(one.curves, two.curves):
+        assert a.params.keys() == b.params.keys()
+        for k in a.params:
+            np.testing.assert_array_equal(np.asarray(b.params[k]), np.asarray(a.params[k]))
+
+    def square(i):
+        if os.getpid() != parent and i % 3 == 0:
+            raise RuntimeError("not here")
+        return i * i
+
+    got = _in_two_processes(40, square)
+    assert all(got[i] == i * i for i in got)
+    assert all(i in got for i in range(40) if i % 3)  # only what the second process failed on is missing
+
+
 def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
     """Crank's torus/plane edge, made of a plane (x = 0) and a cylinder about an axis along y that cuts it in two
     lines, z = 0 and z = 1, and bulges 11.6 tolerances through it between them. The mesh (flat, in the plane) puts

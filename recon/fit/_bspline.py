@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
@@ -440,6 +441,26 @@ def _cyclic_difference(n: int, order: int) -> sp.csr_matrix:
     return d.tocsr()
 
 
+@lru_cache(maxsize=64)
+def _penalty(nu: int, nv: int, periodic_u: bool):
+    """(the thin-plate penalty's matrix (nu·nv, nu·nv), the mean of its diagonal, the identity (nu·nv, nu·nv)) of an
+    nu × nv control grid (step 3 of the module notes).
+
+    It depends on the grid alone, and a fit solves on one grid four times (the parameter corrections) and most
+    fits on the same few grids: building it took two thirds of the B-spline solves (rocker-arm2500). Callers
+    must not modify the matrices in place.
+    """
+    if periodic_u:
+        du2, du1 = _cyclic_difference(nu, 2), _cyclic_difference(nu, 1)
+    else:
+        du2, du1 = _difference(nu, 2), _difference(nu, 1)
+    dv2, dv1 = _difference(nv, 2), _difference(nv, 1)
+    iu, iv = sp.identity(nu), sp.identity(nv)
+    pen = [sp.kron(du2, iv), sp.kron(iu, dv2), np.sqrt(2.0) * sp.kron(du1, dv1)]
+    penalty = sum(d.T @ d for d in pen)
+    return penalty, float(penalty.diagonal().mean()), sp.identity(nu * nv)
+
+
 def _design(uv, ku, kv, p, nu, nv, periodic_u=False):
     fu, bu = basis_functions(uv[:, 0], ku, p)
     fv, bv = basis_functions(uv[:, 1], kv, p)
@@ -461,20 +482,15 @@ def _solve(points, uv, box, intervals, degree, smoothing, periodic_u=False):
     if periodic_u:
         ku = u0 + periodic_knots(u1 - u0, intervals[0], degree)
         nu = intervals[0]
-        du2, du1 = _cyclic_difference(nu, 2), _cyclic_difference(nu, 1)
     else:
         ku = clamped_knots(u0, u1, intervals[0], degree)
         nu = intervals[0] + degree
-        du2, du1 = _difference(nu, 2), _difference(nu, 1)
     a = _design(uv, ku, kv, degree, nu, nv, periodic_u)
-    dv2, dv1 = _difference(nv, 2), _difference(nv, 1)
-    iu, iv = sp.identity(nu), sp.identity(nv)
-    pen = [sp.kron(du2, iv), sp.kron(iu, dv2), np.sqrt(2.0) * sp.kron(du1, dv1)]
-    penalty = sum(d.T @ d for d in pen)
+    penalty, penalty_mean, ridge = _penalty(nu, nv, periodic_u)
     ata = (a.T @ a).tocsc()
-    lam = smoothing * ata.diagonal().mean() / max(penalty.diagonal().mean(), 1e-300)
+    lam = smoothing * ata.diagonal().mean() / max(penalty_mean, 1e-300)
     # a tiny ridge keeps control points with no data and no curvature (corners of the box) determined
-    system = (ata + lam * penalty + 1e-10 * ata.diagonal().mean() * sp.identity(nu * nv)).tocsc()
+    system = (ata + lam * penalty + 1e-10 * ata.diagonal().mean() * ridge).tocsc()
     cp = spsolve(system, a.T @ points)
     return BSplineSurface(degree, degree, ku, kv, np.asarray(cp).reshape(nu, nv, 3), periodic_u)
 

@@ -152,11 +152,16 @@ def _residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
     return MAD_TO_SIGMA * float(np.median(np.abs(fit.distance(pts))))
 
 
-def _later_fits(first: SurfaceFit, pts, normals, *, tolerance: float, types):
-    """The fits within tolerance of the analytic types after ``first``'s (among ``types``), in order."""
+def _later_fits(first: SurfaceFit, pts, normals, *, tolerance: float, types, made: dict | None = None):
+    """The fits within tolerance of the analytic types after ``first``'s (among ``types``), in order.
+
+    ``made``: every fit made (within tolerance or not) goes in it by type, for a caller that may want one again.
+    """
     for kind in tuple(ANALYTIC_FITTERS)[tuple(ANALYTIC_FITTERS).index(first.type) + 1 :]:
         if kind in types:
             fit = ANALYTIC_FITTERS[kind](pts, normals, tolerance=tolerance)
+            if made is not None:
+                made[kind] = fit
             if fit:
                 yield fit
 
@@ -220,8 +225,10 @@ def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float,
         return first
     mid = _chord_midpoints(pts, faces)  # the same chords for every surface tried
     best, best_c = first, _chord_rms(first, mid)
+    first_c = best_c
+    made: dict[str, SurfaceFit] = {}  # the later types' fits, by type: the band test below may want the cylinder's
     if best_c >= CHORD_FLOOR * tolerance:
-        for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
+        for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types, made=made):
             c = _chord_rms(fit, mid)
             if c <= CHORD_GAIN * best_c:
                 best, best_c = fit, c
@@ -230,11 +237,14 @@ def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float,
         # a band whose vertices are two circles of one radius (a hole through a thin plate) lies on a sphere as
         # exactly as on the cylinder, and its chords are too short to tell: the cylinder, when it holds the
         # vertices as exactly and the chords no worse. A sphere a designer drew has its vertices on more
-        # circles, where no cylinder fits.
-        cyl = ANALYTIC_FITTERS["cylinder"](pts, normals, tolerance=tolerance)
-        if cyl and cyl.deviation["max"] <= BAND_EXACT * tolerance and _chord_rms(cyl, mid) <= best_c:
-            best, best_c = cyl, _chord_rms(cyl, mid)
+        # circles, where no cylinder fits. (The fitters are deterministic: one made above is the same fit.)
+        cyl = made["cylinder"] if "cylinder" in made else ANALYTIC_FITTERS["cylinder"](pts, normals,
+                                                                                        tolerance=tolerance)
+        if cyl and cyl.deviation["max"] <= BAND_EXACT * tolerance:
+            c = _chord_rms(cyl, mid)
+            if c <= best_c:
+                best, best_c = cyl, c
     if best is not first:
         log.debug("fit_surface: the chords lie on the %s (RMS %.3g), not on the %s (%.3g)", best.type, best_c,
-                  first.type, _chord_rms(first, mid))
+                  first.type, first_c)
     return best
