@@ -6,7 +6,6 @@ judges a reconstruction by (faces by type, deviation from the mesh, validity, ti
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import logging
 import os
