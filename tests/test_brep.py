@@ -219,12 +219,8 @@ def test_fitted_cylinder_mesh_gives_three_face_solid():
     assert res.validity.volume == pytest.approx(np.pi * 64 * 20, rel=7e-4)
 
 
-def test_faces_on_their_own_curves_sew_into_the_cylinder(monkeypatch):
-    # Every face made to fail on the network's edges (on copies of them, and as a filling): each is then bounded
-    # by its polylines' images in its own surface's parameters, the side band across its seam, and sewing closes
-    # them into one solid. Its faces lie on the fitted surfaces and its edges within the 0.01 tolerance of the
-    # true ones (the caps' rims are 64-point polylines of the 128-gon: a sagitta of 0.0096), so the volume is
-    # within 0.01 x the area (1407) of the cylinder's.
+def _refuse_faces_on_the_network_and_fillings(monkeypatch):
+    """Every face made to fail on the network's edges (on copies of them too) and as a filling."""
     from recon.brep import _build
     from recon.errors import BrepError
 
@@ -233,6 +229,14 @@ def test_faces_on_their_own_curves_sew_into_the_cylinder(monkeypatch):
 
     monkeypatch.setattr(_build, "_face_on_surface", refuse)
     monkeypatch.setattr(_build, "_fallback_face", lambda *a, **k: (None, 0.0, "failed", "refused by the test"))
+
+
+def _sewn_cylinder():
+    """A cylinder of radius 8 and height 20 in 128 sections, its caps and side labelled and fitted, built into a
+    solid; the result, checked as three sewn faces of the right types making one valid solid. Its faces lie on the
+    fitted surfaces and its edges within the 0.01 tolerance of the true ones (the caps' rims are 64-point
+    polylines of the 128-gon: a sagitta of 0.0096), so the volume is within 0.01 x the area (1407) of the
+    cylinder's."""
     m = trimesh.creation.cylinder(radius=8, height=20, sections=128).subdivide_to_size(1.0)
     v, f = np.asarray(m.vertices), np.asarray(m.faces)
     nz = m.face_normals[:, 2]
@@ -243,6 +247,15 @@ def test_faces_on_their_own_curves_sew_into_the_cylinder(monkeypatch):
     assert res.ok and res.validity.n_faces == 3
     area = 2 * np.pi * 8 * 20 + 2 * np.pi * 64
     assert res.validity.volume == pytest.approx(np.pi * 64 * 20, abs=0.01 * area)
+    return res
+
+
+def test_faces_on_their_own_curves_sew_into_the_cylinder(monkeypatch):
+    # Every face made to fail on the network's edges (on copies of them, and as a filling): each is then bounded
+    # by its polylines' images in its own surface's parameters, the side band across its seam, and sewing closes
+    # them into one solid.
+    _refuse_faces_on_the_network_and_fillings(monkeypatch)
+    _sewn_cylinder()
 
 
 @pytest.mark.parametrize("part, variant", [("plate_holes", "clean"), ("box_fillet", "noisy20")])
@@ -642,14 +655,10 @@ def test_a_face_on_its_mesh_boundary_where_the_placed_corners_cross():
 
 def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
     # As above with the placed corners refused too (as where they cross): the last resort is each face on the
-    # mesh's own boundary in its surface's parameters, and sewing closes the three into one valid solid, its
-    # volume within the rim polylines' sagitta (0.0096 of the 0.01 tolerance) times the area of the cylinder's.
+    # mesh's own boundary in its surface's parameters, and sewing closes the three into one valid solid.
     from recon.brep import _build
     from recon.curves import CurveNetwork
     from recon.errors import BrepError
-
-    def refuse(*args, **kwargs):
-        raise BrepError("refused by the test")
 
     own_curves_face = _build._own_curves_face
 
@@ -658,16 +667,7 @@ def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
             raise BrepError("the placed corners cross (by the test)")
         return own_curves_face(model, loops, geo, vote, precision)
 
-    monkeypatch.setattr(_build, "_face_on_surface", refuse)
-    monkeypatch.setattr(_build, "_fallback_face", lambda *a, **k: (None, 0.0, "failed", "refused by the test"))
+    _refuse_faces_on_the_network_and_fillings(monkeypatch)
     monkeypatch.setattr(_build, "_own_curves_face", on_mesh_only)
-    m = trimesh.creation.cylinder(radius=8, height=20, sections=128).subdivide_to_size(1.0)
-    v, f = np.asarray(m.vertices), np.asarray(m.faces)
-    nz = m.face_normals[:, 2]
-    lab = np.where(nz > 0.9, 0, np.where(nz < -0.9, 1, 2)).astype(np.int64)
-    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01)
-    assert [r.status for r in res.faces] == ["ok-sewn"] * 3
+    res = _sewn_cylinder()
     assert sum("built on its mesh boundary" in w for w in res.warnings) == 3
-    assert res.ok and res.validity.n_faces == 3
-    area = 2 * np.pi * 8 * 20 + 2 * np.pi * 64
-    assert res.validity.volume == pytest.approx(np.pi * 64 * 20, abs=0.01 * area)

@@ -217,8 +217,9 @@ def _square_prism_on_cylinder(radius=1.0, height=1.0):
     return v, np.array(faces), np.array(labels)
 
 
-def test_coarse_chords_are_refined_onto_the_surfaces_edge():
-    radius, height, tol = 1.0, 1.0, 1e-3
+def _prism_projector(radius, height):
+    """The projector onto ``_square_prism_on_cylinder``'s surfaces: parts 0-3 the cylinder, 4 and 5 the planes
+    z = height (top) and z = 0 (bottom)."""
 
     def project(part, pts):
         if part >= 4:  # the planes z = height (top) and z = 0 (bottom)
@@ -226,6 +227,14 @@ def test_coarse_chords_are_refined_onto_the_surfaces_edge():
             return np.column_stack([pts[:, :2], np.full(len(pts), z)]), np.tile([0.0, 0.0, 1.0], (len(pts), 1))
         e = pts[:, :2] / np.linalg.norm(pts[:, :2], axis=1)[:, None]
         return np.column_stack([radius * e, pts[:, 2]]), np.column_stack([e, np.zeros(len(pts))])
+
+    return project
+
+
+def test_coarse_chords_are_refined_onto_the_surfaces_edge():
+    radius, height, tol = 1.0, 1.0, 1e-3
+
+    project = _prism_projector(radius, height)
 
     v, f, labels = _square_prism_on_cylinder(radius, height)
     net = curve_network(v, f, labels)
@@ -255,12 +264,7 @@ def test_two_processes_place_the_network_as_one_does():
     radius, height, tol = 1.0, 1.0, 1e-3
     parent = os.getpid()
 
-    def project(part, pts):
-        if part >= 4:
-            z = height if part == 4 else 0.0
-            return np.column_stack([pts[:, :2], np.full(len(pts), z)]), np.tile([0.0, 0.0, 1.0], (len(pts), 1))
-        e = pts[:, :2] / np.linalg.norm(pts[:, :2], axis=1)[:, None]
-        return np.column_stack([radius * e, pts[:, 2]]), np.column_stack([e, np.zeros(len(pts))])
+    project = _prism_projector(radius, height)
 
     v, f, labels = _square_prism_on_cylinder(radius, height)
     net = curve_network(v, f, labels)
