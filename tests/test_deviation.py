@@ -288,6 +288,25 @@ def test_mesh_distance_exact_where_certified_and_bounded_far_away():
     assert (d[exact] == pytest.approx(truth[exact], abs=1e-9))
 
 
+def test_mesh_distance_pruning_keeps_the_minimum_to_the_last_bit():
+    # Candidates are pruned by each piece's own radius (not the largest): what is measured must still be the
+    # least distance over every piece, the same float as brute force over them, near the mesh and a few
+    # diagonals away (where the 16 nearest do not settle a point and step 2 measures it).
+    from recon.deviation import _pieces, _point_triangle_distance, mesh_distance
+
+    m = trimesh.creation.box(extents=(40, 2, 2))
+    fine = trimesh.creation.box(extents=(2, 2, 2)).subdivide_to_size(0.2)
+    fine.apply_translation((21, 0, 0))
+    mesh = trimesh.util.concatenate([m, fine])
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    rng = np.random.default_rng(11)
+    points = np.vstack([rng.uniform((-22, -3, -3), (24, 3, 3), (200, 3)), rng.uniform(-80, 80, (100, 3))])
+    d, exact = mesh_distance(v, f, points)
+    tri = _pieces(v[f])
+    truth = np.array([_point_triangle_distance(np.repeat(q[None], len(tri), 0), tri).min() for q in points])
+    assert exact.all()
+    np.testing.assert_array_equal(d, truth)
+
 def test_faces_without_triangulation_are_still_measured(monkeypatch):
     # plate_holes/coarse, abc_00000050: BRepMesh left every face of a broken B-rep without triangles and the
     # candidate tree was empty ("zero-size array to reduction operation maximum"). Untriangulated faces are
