@@ -199,7 +199,7 @@ class BrepDistance:
                 t = np.linspace(c2.FirstParameter(), c2.LastParameter(), n)
                 if edge.Orientation() == TopAbs_REVERSED:
                     t = t[::-1]
-                pts.extend((c2.Value(ti).X(), c2.Value(ti).Y()) for ti in t)
+                pts.extend(_xy(c2.Value(ti)) for ti in t)
                 ex.Next()
             if len(pts) < 3:
                 continue
@@ -209,9 +209,10 @@ class BrepDistance:
             closed = np.vstack([ring, ring[:1]])
             seg = np.diff(closed, axis=0)
             lengths = np.hypot(seg[:, 0], seg[:, 1])
-            for a, d, length in zip(closed[:-1], seg, lengths):
-                k = max(1, int(math.ceil(length / (0.5 * _BAND))))
-                dense.append(a + d * (np.arange(k)[:, None] / k))
+            k = np.maximum(1, np.ceil(lengths / (0.5 * _BAND))).astype(np.int64)
+            s = np.repeat(np.arange(len(seg)), k)
+            j = np.arange(len(s)) - np.repeat(np.cumsum(k) - k, k)  # 0 … k-1 along each segment
+            dense.append(closed[:-1][s] + seg[s] * (j / k[s])[:, None])
         fd.ring_tree = cKDTree(np.vstack(dense)) if dense else None
 
     def _prepare_edges(self, fd: _Face):
