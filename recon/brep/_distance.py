@@ -535,9 +535,14 @@ class BrepDistance:
         nrm = np.zeros((n, 3))
         pending = np.arange(n)
         need_edges = None
+        edge_d = np.full(n, np.inf)
         for uv, f, nv in cands:
             if not len(pending):
                 break
+            if need_edges is not None:
+                # A critical point farther than the boundary loses to it whether it lies on the face or not: it
+                # is not classified (the exact classifier near the boundary was most of a query's time).
+                pending = pending[~(np.linalg.norm(p[pending] - f[pending], axis=1) > edge_d[pending])]
             ok = self._inside(fd, uv[pending])
             sel = pending[ok]
             d = np.linalg.norm(p[sel] - f[sel], axis=1)
@@ -546,8 +551,10 @@ class BrepDistance:
             if need_edges is None:
                 # The nearest critical point is off the face: the boundary competes with the others.
                 need_edges = pending.copy()
+                if len(need_edges) and fd.edges:
+                    de, fe = self._edge_distance(fd, p[need_edges])
+                    edge_d[need_edges] = de
         if len(need_edges) and fd.edges:
-            de, fe = self._edge_distance(fd, p[need_edges])
             better = de < best[need_edges]
             sel = need_edges[better]
             best[sel], foot[sel] = de[better], fe[better]
