@@ -306,7 +306,9 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     # 2. the others: every piece within best + reach, nearest-first by that count, within the budgets;
     todo = np.flatnonzero(~exact)
     if len(todo):
-        count = tree.query_ball_point(p[todo], best[todo] + reach, return_length=True)
+        # Counted in a tree of larger leaves: a ball of best + reach holds thousands of pieces, whole leaves at a
+        # time (the same counts; 2.8 s → 1.9 s on crank's 77,684 samples).
+        count = cKDTree(centre, leafsize=64).query_ball_point(p[todo], best[todo] + reach, return_length=True)
         order = np.argsort(count, kind="stable")
         todo, count = todo[order], count[order]
         ok = (count <= cap) & (np.cumsum(count) <= _PAIR_BUDGET)
