@@ -145,7 +145,12 @@ class BrepDistance:
         mesher = BRepMesh_IncrementalMesh(shape, deflection, False, 0.25, True)
         if not mesher.IsDone():
             raise BrepError("shape: tessellation failed")
+        # An edge bounds two faces: it is sampled once (the 3D curve does not depend on the face or orientation).
+        self._edge_map = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(shape, TopAbs_EDGE, self._edge_map)
+        self._edge_cache = {}
         self._faces = [self._prepare(i, f) for i, f in enumerate(self.faces)]
+        del self._edge_cache
         self.types = tuple(f.kind for f in self._faces)
         self._build_samples(rng)
 
@@ -222,24 +227,29 @@ class BrepDistance:
             edge = TopoDS.Edge_s(emap.FindKey(i))
             if BRep_Tool.Degenerated_s(edge):
                 continue
-            curve = BRepAdaptor_Curve(edge)
-            is_line = curve.GetType() == GeomAbs_CurveType.GeomAbs_Line
-            t = np.linspace(curve.FirstParameter(), curve.LastParameter(), 2 if is_line else _EDGE_SAMPLES)
-            pts = np.array([_xyz(curve.Value(ti)) for ti in t])
-            sag = 0.0
-            if not is_line:
-                mid = np.array([_xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
-                sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
-            closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * self.diagonal)
-            circle = ()
-            if curve.GetType() == GeomAbs_CurveType.GeomAbs_Circle:
-                circ = curve.Circle()
-                ax = circ.Position()
-                circle = tuple(np.array(_xyz(v)) for v in (ax.Location(), ax.XDirection(), ax.YDirection()))
-                circle += (circ.Radius(),)
-            fd.edges.append(
-                _Edge(curve=curve, is_line=is_line, points=pts, params=t, sagitta=sag, closed=closed, circle=circle)
-            )
+            key = self._edge_map.FindIndex(edge) or ("face", fd.index, i)
+            if key not in self._edge_cache:
+                self._edge_cache[key] = self._edge(edge)
+            fd.edges.append(self._edge_cache[key])
+
+    def _edge(self, edge) -> _Edge:
+        """The samples of a non-degenerate edge's 3D curve."""
+        curve = BRepAdaptor_Curve(edge)
+        is_line = curve.GetType() == GeomAbs_CurveType.GeomAbs_Line
+        t = np.linspace(curve.FirstParameter(), curve.LastParameter(), 2 if is_line else _EDGE_SAMPLES)
+        pts = np.array([_xyz(curve.Value(ti)) for ti in t])
+        sag = 0.0
+        if not is_line:
+            mid = np.array([_xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
+            sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
+        closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * self.diagonal)
+        circle = ()
+        if curve.GetType() == GeomAbs_CurveType.GeomAbs_Circle:
+            circ = curve.Circle()
+            ax = circ.Position()
+            circle = tuple(np.array(_xyz(v)) for v in (ax.Location(), ax.XDirection(), ax.YDirection()))
+            circle += (circ.Radius(),)
+        return _Edge(curve=curve, is_line=is_line, points=pts, params=t, sagitta=sag, closed=closed, circle=circle)
 
     def _prepare_mesh(self, fd: _Face):
         loc = TopLoc_Location()
