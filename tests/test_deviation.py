@@ -418,3 +418,35 @@ def test_shape_to_mesh_percentiles_are_shares_of_the_area():
     rep = deviation(np.asarray(box.vertices), np.asarray(box.faces), shape, samples=500)
     assert rep.shape_to_mesh.p95 <= 1e-9
     assert rep.shape_to_mesh.max == pytest.approx(1.0, abs=1e-6)
+
+
+def test_signed_distance_defers_boundary_normals_without_changing_a_bit(monkeypatch):
+    # signed_distance computes a boundary foot's normal (a surface projection on a B-spline face) only where it
+    # counts for the sign: the result must be the same floats as with every face's normals computed up front.
+    from pathlib import Path
+
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+
+    # the plate with holes as B-spline faces: points over a hole project into it and take the hole's edge
+    shape, _ = read_step(Path(__file__).resolve().parents[1] / "fixtures" / "data" / "plate_holes.step")
+    brep = BrepDistance(BRepBuilderAPI_NurbsConvert(shape, True).Shape())
+    assert set(brep.types) == {"bspline"}
+    rng = np.random.default_rng(12)
+    lo, hi = brep._sample_points.min(axis=0), brep._sample_points.max(axis=0)
+    p = rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), (600, 3))
+    computed = []
+    monkeypatch.setattr(BrepDistance, "_edge_normals",
+                        lambda self, i, f, _o=BrepDistance._edge_normals: computed.append(len(f)) or _o(self, i, f))
+    deferred = brep.signed_distance(p)
+    assert sum(computed) > 0  # some boundary normals did count
+    up_front = BrepDistance._face_query_deferred
+
+    def all_normals(self, index, q, *, uv0=None):
+        best, foot, nrm, later = up_front(self, index, q, uv0=uv0)
+        nrm[later] = self._edge_normals(index, foot[later])
+        return best, foot, nrm, later[:0]
+
+    monkeypatch.setattr(BrepDistance, "_face_query_deferred", all_normals)
+    for got, want in zip(deferred, brep.signed_distance(p)):
+        np.testing.assert_array_equal(got, want)
+    assert (np.sign(deferred[0]) < 0).any() and (np.sign(deferred[0]) > 0).any()

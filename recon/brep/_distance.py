@@ -527,16 +527,30 @@ class BrepDistance:
 
     def _face_query(self, index: int, p, *, uv0=None):
         """Unsigned distance, nearest point and outward normal there: (n,), (n, 3), (n, 3)."""
+        best, foot, nrm, later = self._face_query_deferred(index, p, uv0=uv0)
+        if len(later):
+            nrm[later] = self._edge_normals(index, foot[later])
+        return best, foot, nrm
+
+    def _edge_normals(self, index: int, foot):
+        """Outward normal at feet ``foot`` (k, 3) on face ``index``'s boundary."""
+        fd = self._faces[index]
+        return self._geometric_normal(fd, foot) * fd.sense
+
+    def _face_query_deferred(self, index: int, p, *, uv0=None):
+        """:meth:`_face_query`, but the normals at boundary feet of a non-analytic face (one surface projection
+        each) are left for the caller: (n,), (n, 3), (n, 3), and the rows ``later`` (k,) whose normal is unset."""
         fd = self._faces[index]
         n = len(p)
+        later = np.empty(0, dtype=np.int64)
         if n == 0:
-            return np.empty(0), np.empty((0, 3)), np.empty((0, 3))
+            return np.empty(0), np.empty((0, 3)), np.empty((0, 3)), later
         if fd.kind in _ANALYTIC:
             cands = self._critical_points(fd, p)
         else:
             if uv0 is None:
                 if not len(fd.nodes):
-                    return np.full(n, np.nan), np.full((n, 3), np.nan), np.zeros((n, 3))
+                    return np.full(n, np.nan), np.full((n, 3), np.nan), np.zeros((n, 3)), later
                 j = cKDTree(fd.nodes).query(p)[1]
                 uv0 = fd.uv[j]
             cands = self._generic_projection(fd, p, uv0)
@@ -568,10 +582,12 @@ class BrepDistance:
             better = de < best[need_edges]
             sel = need_edges[better]
             best[sel], foot[sel] = de[better], fe[better]
-            if len(sel):
+            if len(sel) and fd.kind in _ANALYTIC:
                 nrm[sel] = self._geometric_normal(fd, foot[sel])
+            elif len(sel):
+                later = sel
         best[~np.isfinite(best)] = np.nan
-        return best, foot, nrm * fd.sense
+        return best, foot, nrm * fd.sense, later
 
     def face_signed_distance(self, index: int, points, *, uv0=None):
         """Exact signed distance from ``points`` to face ``index`` (trimmed).
@@ -645,19 +661,35 @@ class BrepDistance:
         tol = 1e-9 * self.diagonal
         order = np.argsort(pair_face, kind="stable")
         bounds = np.searchsorted(pair_face[order], np.arange(nf + 1))
+        # The distances and feet decide the nearest face; the normals only the sign. They are summed in a second
+        # pass, once it is known which faces' normals count, so that a boundary foot's normal (a surface
+        # projection each on a B-spline face) is only computed where it does.
+        steps = []
         for f in range(nf):
             sel = order[bounds[f] : bounds[f + 1]]
             if not len(sel):
                 continue
             pts = pair_point[sel]
-            a, ft, nv = self._face_query(f, p[pts], uv0=self._sample_uv[sample_of_pair[sel]])
+            a, ft, nv, later = self._face_query_deferred(f, p[pts], uv0=self._sample_uv[sample_of_pair[sel]])
             # Where faces meet (an edge or vertex is the nearest point) the sign comes from the sum
             # of their normals, the pseudo-normal: one face's normal is wrong at an obtuse edge.
             tie = (np.abs(a - best[pts]) <= tol) & (np.linalg.norm(ft - foot[pts], axis=1) <= tol)
-            normal[pts[tie]] += nv[tie]
             better = (a < best[pts] - tol) | ~np.isfinite(best[pts])
             i = pts[better]
-            best[i], nearest[i], foot[i], normal[i] = a[better], f, ft[better], nv[better]
+            best[i], nearest[i], foot[i] = a[better], f, ft[better]
+            steps.append((f, pts, ft, nv, later, tie, better))
+        last = np.full(n, -1, dtype=np.int64)  # the step of each point's last "better" face
+        for s, (f, pts, _, _, _, _, better) in enumerate(steps):
+            last[pts[better]] = s
+        for s, (f, pts, ft, nv, later, tie, better) in enumerate(steps):
+            tie &= s > last[pts]
+            better &= s == last[pts]
+            if len(later):
+                later = later[tie[later] | better[later]]
+                if len(later):
+                    nv[later] = self._edge_normals(f, ft[later])
+            normal[pts[tie]] += nv[tie]
+            normal[pts[better]] = nv[better]
         sign = np.sign(np.einsum("ij,ij->i", p - foot, normal))
         return np.where(sign < 0, -best, best), nearest, foot
 
@@ -683,7 +715,7 @@ class BrepDistance:
             p, uv, _ = self._triangle_samples(fd, area, k, rng)
             if len(p):
                 # Samples on the triangles lie within the deflection; move them onto the face.
-                _, on, _ = self._face_query(fd.index, p, uv0=uv)
+                _, on, _, _ = self._face_query_deferred(fd.index, p, uv0=uv)  # the feet only
                 pts.append(on)
                 fid.append(np.full(len(on), fd.index))
         return np.vstack(pts), np.concatenate(fid).astype(np.int64)
