@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 DEFAULT_SAMPLES = 20_000
 #: Most mesh triangles (pieces) measured per B-rep sample in the shape → mesh direction (:func:`mesh_distance`).
 MAX_CANDIDATES = 20_000
-#: Point–triangle pairs the shape → mesh direction may evaluate beyond the first 16 per point (~0.8 s per million).
+#: Point–piece pairs within best + the largest piece radius that step 2 of :func:`mesh_distance` may take on.
 _PAIR_BUDGET = 20_000_000
 #: Point–triangle pairs evaluated per numpy batch (bounds the memory of the shape → mesh direction).
 _PAIR_CHUNK = 250_000
@@ -240,8 +240,9 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     :func:`_pieces`); ``r`` is the largest centroid–vertex distance, so a piece whose centroid is ``c`` away
     is at least ``c − r`` away. (1) The 16 nearest pieces: a point is settled when its best distance is at
     most ``d₁₆ − r`` — every point near the mesh, i.e. every sample of a B-rep that follows it. (2) Each other
-    point measures every piece within ``best + r`` (exact), points with the fewest such pieces first, as long
-    as a point needs at most ``max_candidates`` and all together at most :data:`_PAIR_BUDGET` pairs. (3) The
+    point is measured exactly against the pieces within ``best + r``, points with the fewest such pieces first, as
+    long as a point has at most ``max_candidates`` and all together at most :data:`_PAIR_BUDGET` (of those, only
+    the pieces whose own radius lets them beat the best so far are measured). (3) The
     rest — samples of a runaway surface far from the mesh — keep the nearest of 64 pieces: an upper bound,
     flagged. ``trimesh.proximity.closest_point`` instead gathered every triangle whose box meets a ball as
     large as the nearest-vertex distance: 22 GB for such samples (revolved/open, abc_00000050).
