@@ -288,6 +288,25 @@ def test_mesh_distance_exact_where_certified_and_bounded_far_away():
     assert (d[exact] == pytest.approx(truth[exact], abs=1e-9))
 
 
+def test_mesh_distance_pruning_keeps_the_minimum_to_the_last_bit():
+    # Candidates are pruned by each piece's own radius (not the largest): what is measured must still be the
+    # least distance over every piece, the same float as brute force over them, near the mesh and a few
+    # diagonals away (where the 16 nearest do not settle a point and step 2 measures it).
+    from recon.deviation import _pieces, _point_triangle_distance, mesh_distance
+
+    m = trimesh.creation.box(extents=(40, 2, 2))
+    fine = trimesh.creation.box(extents=(2, 2, 2)).subdivide_to_size(0.2)
+    fine.apply_translation((21, 0, 0))
+    mesh = trimesh.util.concatenate([m, fine])
+    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    rng = np.random.default_rng(11)
+    points = np.vstack([rng.uniform((-22, -3, -3), (24, 3, 3), (200, 3)), rng.uniform(-80, 80, (100, 3))])
+    d, exact = mesh_distance(v, f, points)
+    tri = _pieces(v[f])
+    truth = np.array([_point_triangle_distance(np.repeat(q[None], len(tri), 0), tri).min() for q in points])
+    assert exact.all()
+    np.testing.assert_array_equal(d, truth)
+
 def test_faces_without_triangulation_are_still_measured(monkeypatch):
     # plate_holes/coarse, abc_00000050: BRepMesh left every face of a broken B-rep without triangles and the
     # candidate tree was empty ("zero-size array to reduction operation maximum"). Untriangulated faces are
@@ -399,3 +418,35 @@ def test_shape_to_mesh_percentiles_are_shares_of_the_area():
     rep = deviation(np.asarray(box.vertices), np.asarray(box.faces), shape, samples=500)
     assert rep.shape_to_mesh.p95 <= 1e-9
     assert rep.shape_to_mesh.max == pytest.approx(1.0, abs=1e-6)
+
+
+def test_signed_distance_defers_boundary_normals_without_changing_a_bit(monkeypatch):
+    # signed_distance computes a boundary foot's normal (a surface projection on a B-spline face) only where it
+    # counts for the sign: the result must be the same floats as with every face's normals computed up front.
+    from pathlib import Path
+
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+
+    # the plate with holes as B-spline faces: points over a hole project into it and take the hole's edge
+    shape, _ = read_step(Path(__file__).resolve().parents[1] / "fixtures" / "data" / "plate_holes.step")
+    brep = BrepDistance(BRepBuilderAPI_NurbsConvert(shape, True).Shape())
+    assert set(brep.types) == {"bspline"}
+    rng = np.random.default_rng(12)
+    lo, hi = brep._sample_points.min(axis=0), brep._sample_points.max(axis=0)
+    p = rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), (600, 3))
+    computed = []
+    monkeypatch.setattr(BrepDistance, "_edge_normals",
+                        lambda self, i, f, _o=BrepDistance._edge_normals: computed.append(len(f)) or _o(self, i, f))
+    deferred = brep.signed_distance(p)
+    assert sum(computed) > 0  # some boundary normals did count
+    up_front = BrepDistance._face_query_deferred
+
+    def all_normals(self, index, q, *, uv0=None):
+        best, foot, nrm, later = up_front(self, index, q, uv0=uv0)
+        nrm[later] = self._edge_normals(index, foot[later])
+        return best, foot, nrm, later[:0]
+
+    monkeypatch.setattr(BrepDistance, "_face_query_deferred", all_normals)
+    for got, want in zip(deferred, brep.signed_distance(p)):
+        np.testing.assert_array_equal(got, want)
+    assert (np.sign(deferred[0]) < 0).any() and (np.sign(deferred[0]) > 0).any()

@@ -145,7 +145,12 @@ class BrepDistance:
         mesher = BRepMesh_IncrementalMesh(shape, deflection, False, 0.25, True)
         if not mesher.IsDone():
             raise BrepError("shape: tessellation failed")
+        # An edge bounds two faces: it is sampled once (the 3D curve does not depend on the face or orientation).
+        self._edge_map = TopTools_IndexedMapOfShape()
+        TopExp.MapShapes_s(shape, TopAbs_EDGE, self._edge_map)
+        self._edge_cache = {}
         self._faces = [self._prepare(i, f) for i, f in enumerate(self.faces)]
+        del self._edge_cache
         self.types = tuple(f.kind for f in self._faces)
         self._build_samples(rng)
 
@@ -199,7 +204,7 @@ class BrepDistance:
                 t = np.linspace(c2.FirstParameter(), c2.LastParameter(), n)
                 if edge.Orientation() == TopAbs_REVERSED:
                     t = t[::-1]
-                pts.extend((c2.Value(ti).X(), c2.Value(ti).Y()) for ti in t)
+                pts.extend(_xy(c2.Value(ti)) for ti in t)
                 ex.Next()
             if len(pts) < 3:
                 continue
@@ -209,9 +214,10 @@ class BrepDistance:
             closed = np.vstack([ring, ring[:1]])
             seg = np.diff(closed, axis=0)
             lengths = np.hypot(seg[:, 0], seg[:, 1])
-            for a, d, length in zip(closed[:-1], seg, lengths):
-                k = max(1, int(math.ceil(length / (0.5 * _BAND))))
-                dense.append(a + d * (np.arange(k)[:, None] / k))
+            k = np.maximum(1, np.ceil(lengths / (0.5 * _BAND))).astype(np.int64)
+            s = np.repeat(np.arange(len(seg)), k)
+            j = np.arange(len(s)) - np.repeat(np.cumsum(k) - k, k)  # 0 … k-1 along each segment
+            dense.append(closed[:-1][s] + seg[s] * (j / k[s])[:, None])
         fd.ring_tree = cKDTree(np.vstack(dense)) if dense else None
 
     def _prepare_edges(self, fd: _Face):
@@ -221,24 +227,29 @@ class BrepDistance:
             edge = TopoDS.Edge_s(emap.FindKey(i))
             if BRep_Tool.Degenerated_s(edge):
                 continue
-            curve = BRepAdaptor_Curve(edge)
-            is_line = curve.GetType() == GeomAbs_CurveType.GeomAbs_Line
-            t = np.linspace(curve.FirstParameter(), curve.LastParameter(), 2 if is_line else _EDGE_SAMPLES)
-            pts = np.array([_xyz(curve.Value(ti)) for ti in t])
-            sag = 0.0
-            if not is_line:
-                mid = np.array([_xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
-                sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
-            closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * self.diagonal)
-            circle = ()
-            if curve.GetType() == GeomAbs_CurveType.GeomAbs_Circle:
-                circ = curve.Circle()
-                ax = circ.Position()
-                circle = tuple(np.array(_xyz(v)) for v in (ax.Location(), ax.XDirection(), ax.YDirection()))
-                circle += (circ.Radius(),)
-            fd.edges.append(
-                _Edge(curve=curve, is_line=is_line, points=pts, params=t, sagitta=sag, closed=closed, circle=circle)
-            )
+            key = self._edge_map.FindIndex(edge) or ("face", fd.index, i)
+            if key not in self._edge_cache:
+                self._edge_cache[key] = self._edge(edge)
+            fd.edges.append(self._edge_cache[key])
+
+    def _edge(self, edge) -> _Edge:
+        """The samples of a non-degenerate edge's 3D curve."""
+        curve = BRepAdaptor_Curve(edge)
+        is_line = curve.GetType() == GeomAbs_CurveType.GeomAbs_Line
+        t = np.linspace(curve.FirstParameter(), curve.LastParameter(), 2 if is_line else _EDGE_SAMPLES)
+        pts = np.array([_xyz(curve.Value(ti)) for ti in t])
+        sag = 0.0
+        if not is_line:
+            mid = np.array([_xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
+            sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
+        closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * self.diagonal)
+        circle = ()
+        if curve.GetType() == GeomAbs_CurveType.GeomAbs_Circle:
+            circ = curve.Circle()
+            ax = circ.Position()
+            circle = tuple(np.array(_xyz(v)) for v in (ax.Location(), ax.XDirection(), ax.YDirection()))
+            circle += (circ.Radius(),)
+        return _Edge(curve=curve, is_line=is_line, points=pts, params=t, sagitta=sag, closed=closed, circle=circle)
 
     def _prepare_mesh(self, fd: _Face):
         loc = TopLoc_Location()
@@ -516,16 +527,30 @@ class BrepDistance:
 
     def _face_query(self, index: int, p, *, uv0=None):
         """Unsigned distance, nearest point and outward normal there: (n,), (n, 3), (n, 3)."""
+        best, foot, nrm, later = self._face_query_deferred(index, p, uv0=uv0)
+        if len(later):
+            nrm[later] = self._edge_normals(index, foot[later])
+        return best, foot, nrm
+
+    def _edge_normals(self, index: int, foot):
+        """Outward normal at feet ``foot`` (k, 3) on face ``index``'s boundary."""
+        fd = self._faces[index]
+        return self._geometric_normal(fd, foot) * fd.sense
+
+    def _face_query_deferred(self, index: int, p, *, uv0=None):
+        """:meth:`_face_query`, but the normals at boundary feet of a non-analytic face (one surface projection
+        each) are left for the caller: (n,), (n, 3), (n, 3), and the rows ``later`` (k,) whose normal is unset."""
         fd = self._faces[index]
         n = len(p)
+        later = np.empty(0, dtype=np.int64)
         if n == 0:
-            return np.empty(0), np.empty((0, 3)), np.empty((0, 3))
+            return np.empty(0), np.empty((0, 3)), np.empty((0, 3)), later
         if fd.kind in _ANALYTIC:
             cands = self._critical_points(fd, p)
         else:
             if uv0 is None:
                 if not len(fd.nodes):
-                    return np.full(n, np.nan), np.full((n, 3), np.nan), np.zeros((n, 3))
+                    return np.full(n, np.nan), np.full((n, 3), np.nan), np.zeros((n, 3)), later
                 j = cKDTree(fd.nodes).query(p)[1]
                 uv0 = fd.uv[j]
             cands = self._generic_projection(fd, p, uv0)
@@ -534,9 +559,14 @@ class BrepDistance:
         nrm = np.zeros((n, 3))
         pending = np.arange(n)
         need_edges = None
+        edge_d = np.full(n, np.inf)
         for uv, f, nv in cands:
             if not len(pending):
                 break
+            if need_edges is not None:
+                # A critical point farther than the boundary loses to it whether it lies on the face or not: it
+                # is not classified (the exact classifier near the boundary was most of a query's time).
+                pending = pending[~(np.linalg.norm(p[pending] - f[pending], axis=1) > edge_d[pending])]
             ok = self._inside(fd, uv[pending])
             sel = pending[ok]
             d = np.linalg.norm(p[sel] - f[sel], axis=1)
@@ -545,15 +575,19 @@ class BrepDistance:
             if need_edges is None:
                 # The nearest critical point is off the face: the boundary competes with the others.
                 need_edges = pending.copy()
+                if len(need_edges) and fd.edges:
+                    de, fe = self._edge_distance(fd, p[need_edges])
+                    edge_d[need_edges] = de
         if len(need_edges) and fd.edges:
-            de, fe = self._edge_distance(fd, p[need_edges])
             better = de < best[need_edges]
             sel = need_edges[better]
             best[sel], foot[sel] = de[better], fe[better]
-            if len(sel):
+            if len(sel) and fd.kind in _ANALYTIC:
                 nrm[sel] = self._geometric_normal(fd, foot[sel])
+            elif len(sel):
+                later = sel
         best[~np.isfinite(best)] = np.nan
-        return best, foot, nrm * fd.sense
+        return best, foot, nrm * fd.sense, later
 
     def face_signed_distance(self, index: int, points, *, uv0=None):
         """Exact signed distance from ``points`` to face ``index`` (trimmed).
@@ -627,19 +661,35 @@ class BrepDistance:
         tol = 1e-9 * self.diagonal
         order = np.argsort(pair_face, kind="stable")
         bounds = np.searchsorted(pair_face[order], np.arange(nf + 1))
+        # The distances and feet decide the nearest face; the normals only the sign. They are summed in a second
+        # pass, once it is known which faces' normals count, so that a boundary foot's normal (a surface
+        # projection each on a B-spline face) is only computed where it does.
+        steps = []
         for f in range(nf):
             sel = order[bounds[f] : bounds[f + 1]]
             if not len(sel):
                 continue
             pts = pair_point[sel]
-            a, ft, nv = self._face_query(f, p[pts], uv0=self._sample_uv[sample_of_pair[sel]])
+            a, ft, nv, later = self._face_query_deferred(f, p[pts], uv0=self._sample_uv[sample_of_pair[sel]])
             # Where faces meet (an edge or vertex is the nearest point) the sign comes from the sum
             # of their normals, the pseudo-normal: one face's normal is wrong at an obtuse edge.
             tie = (np.abs(a - best[pts]) <= tol) & (np.linalg.norm(ft - foot[pts], axis=1) <= tol)
-            normal[pts[tie]] += nv[tie]
             better = (a < best[pts] - tol) | ~np.isfinite(best[pts])
             i = pts[better]
-            best[i], nearest[i], foot[i], normal[i] = a[better], f, ft[better], nv[better]
+            best[i], nearest[i], foot[i] = a[better], f, ft[better]
+            steps.append((f, pts, ft, nv, later, tie, better))
+        last = np.full(n, -1, dtype=np.int64)  # the step of each point's last "better" face
+        for s, (f, pts, _, _, _, _, better) in enumerate(steps):
+            last[pts[better]] = s
+        for s, (f, pts, ft, nv, later, tie, better) in enumerate(steps):
+            tie &= s > last[pts]
+            better &= s == last[pts]
+            if len(later):
+                later = later[tie[later] | better[later]]
+                if len(later):
+                    nv[later] = self._edge_normals(f, ft[later])
+            normal[pts[tie]] += nv[tie]
+            normal[pts[better]] = nv[better]
         sign = np.sign(np.einsum("ij,ij->i", p - foot, normal))
         return np.where(sign < 0, -best, best), nearest, foot
 
@@ -665,7 +715,7 @@ class BrepDistance:
             p, uv, _ = self._triangle_samples(fd, area, k, rng)
             if len(p):
                 # Samples on the triangles lie within the deflection; move them onto the face.
-                _, on, _ = self._face_query(fd.index, p, uv0=uv)
+                _, on, _, _ = self._face_query_deferred(fd.index, p, uv0=uv)  # the feet only
                 pts.append(on)
                 fid.append(np.full(len(on), fd.index))
         return np.vstack(pts), np.concatenate(fid).astype(np.int64)
