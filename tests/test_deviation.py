@@ -263,17 +263,22 @@ def _brute(points, v, f):
     return np.array([_point_triangle_distance(np.repeat(q[None], len(tri), 0), tri).min() for q in points])
 
 
+def _sliver_box_beside_a_fine_one():
+    """A 40 x 2 x 2 box whose sides are long slivers, next to a 2-unit box subdivided to 0.2: (vertices, faces)."""
+    m = trimesh.creation.box(extents=(40, 2, 2))
+    fine = trimesh.creation.box(extents=(2, 2, 2)).subdivide_to_size(0.2)
+    fine.apply_translation((21, 0, 0))
+    mesh = trimesh.util.concatenate([m, fine])
+    return np.asarray(mesh.vertices), np.asarray(mesh.faces)
+
+
 def test_mesh_distance_exact_where_certified_and_bounded_far_away():
     # A box whose sides are long slivers next to a finely subdivided side: the case where the candidate
     # bound is loose. Points near it must be exact (against brute force); points 1000 diagonals away with
     # a 16-triangle cap are upper bounds (the cost is bounded, not the answer silently wrong).
     from recon.deviation import mesh_distance
 
-    m = trimesh.creation.box(extents=(40, 2, 2))
-    fine = trimesh.creation.box(extents=(2, 2, 2)).subdivide_to_size(0.2)
-    fine.apply_translation((21, 0, 0))
-    mesh = trimesh.util.concatenate([m, fine])
-    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    v, f = _sliver_box_beside_a_fine_one()
     rng = np.random.default_rng(7)
     near = rng.uniform((-22, -3, -3), (24, 3, 3), (300, 3))
     d, exact = mesh_distance(v, f, near)
@@ -294,11 +299,7 @@ def test_mesh_distance_pruning_keeps_the_minimum_to_the_last_bit():
     # diagonals away (where the 16 nearest do not settle a point and step 2 measures it).
     from recon.deviation import _pieces, _point_triangle_distance, mesh_distance
 
-    m = trimesh.creation.box(extents=(40, 2, 2))
-    fine = trimesh.creation.box(extents=(2, 2, 2)).subdivide_to_size(0.2)
-    fine.apply_translation((21, 0, 0))
-    mesh = trimesh.util.concatenate([m, fine])
-    v, f = np.asarray(mesh.vertices), np.asarray(mesh.faces)
+    v, f = _sliver_box_beside_a_fine_one()
     rng = np.random.default_rng(11)
     points = np.vstack([rng.uniform((-22, -3, -3), (24, 3, 3), (200, 3)), rng.uniform(-80, 80, (100, 3))])
     d, exact = mesh_distance(v, f, points)
@@ -306,6 +307,7 @@ def test_mesh_distance_pruning_keeps_the_minimum_to_the_last_bit():
     truth = np.array([_point_triangle_distance(np.repeat(q[None], len(tri), 0), tri).min() for q in points])
     assert exact.all()
     np.testing.assert_array_equal(d, truth)
+
 
 def test_faces_without_triangulation_are_still_measured(monkeypatch):
     # plate_holes/coarse, abc_00000050: BRepMesh left every face of a broken B-rep without triangles and the
