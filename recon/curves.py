@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from ._parallel import shared_map
 from .errors import InputError
 from .mesh._topology import stable_argsort, unique_rows
 
@@ -632,8 +633,8 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         points gives way to them (:func:`_strays`), only when both its parts are in it (an open boundary: its
         one part). Default: every part.
     jobs : int
-        Processes to place the edges with: two at most (a forked second one, on Linux; see
-        :func:`_in_two_processes`). The result does not depend on it.
+        Processes to place the edges with: two at most (see :func:`recon._parallel.shared_map`). The result
+        does not depend on it.
 
     Returns
     -------
@@ -689,7 +690,7 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
 
     # Every edge is placed on its own (the projections depend on the point alone): a second process can place
     # some while this one places the others, with the same result.
-    done = _in_two_processes(network.n_edges, edge) if jobs > 1 and network.n_edges > 1 else {}
+    done = shared_map(edge, network.n_edges, grace=SECOND_PROCESS_GRACE) if jobs > 1 and network.n_edges > 1 else {}
     out, offs, egap, curves = [], [0], [], []
     for e in range(network.n_edges):
         pts, gap, curve, notes = done[e] if e in done else edge(e)
@@ -708,81 +709,6 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
 #: time its own share took): a second process that hangs (forked from a threaded one: a lock held at the fork)
 #: costs this, and its edges are placed by the first.
 SECOND_PROCESS_GRACE = 30.0
-
-
-def _in_two_processes(n: int, one: Callable[[int], object]) -> dict:
-    """``{i: one(i)}`` for some of ``i`` in 0 … n − 1, made by this process and a forked second one, each taking
-    the next ``i`` not yet taken; the ``i`` missing are the caller's to make (all of them where no second process
-    can be had: not on Linux, inside a daemonic process, a failed fork; or the second one died or failed).
-
-    ``one`` must depend on ``i`` and the state at the fork alone (what the second process changes is lost), and
-    give picklable answers. An exception in ``one`` here propagates; there, the second process stops and its
-    ``i`` are left to the caller, who meets the same exception.
-    """
-    import multiprocessing
-    import pickle
-    import sys
-    import time
-
-    if not sys.platform.startswith("linux"):  # (macOS's system libraries are not safe in a forked child)
-        return {}
-    mp = multiprocessing.get_context("fork")
-    counter, lock = mp.RawValue("q", 0), mp.Lock()
-
-    def take():
-        with lock:
-            i = counter.value
-            counter.value = i + 1
-        return i
-
-    def serve(conn):
-        made = {}
-        try:
-            while (i := take()) < n:
-                made[i] = one(i)
-        except BaseException:  # noqa: BLE001  (what it made is still good; the caller makes the rest)
-            pass
-        finally:
-            conn.send(made)
-            conn.close()
-
-    recv, send = mp.Pipe(duplex=False)
-    try:
-        proc = mp.Process(target=serve, args=(send,), daemon=True, name="recon-network")
-        proc.start()
-    except (OSError, AssertionError) as err:  # multiprocessing asserts that a daemon has no children
-        log.info("network_geometry: no second process (%s)", err or type(err).__name__)
-        return {}
-    finally:
-        send.close()
-    made = {}
-    start = time.monotonic()
-    while (i := take()) < n:
-        made[i] = one(i)
-    now = time.monotonic()
-    # it has one item left at most: waiting longer than this process took for all of its own means it hangs
-    give_up = now + max(SECOND_PROCESS_GRACE, 2.0 * (now - start))
-    theirs = {}
-    try:
-        while True:
-            if recv.poll(0.01):
-                theirs = recv.recv()
-                break
-            if not proc.is_alive():  # (its answer may still be on its way)
-                give_up = min(give_up, time.monotonic() + 1.0)
-            if time.monotonic() > give_up:
-                log.warning("network_geometry: the second process gave no answer; its edges are placed here")
-                break
-    except (EOFError, OSError, pickle.UnpicklingError):
-        theirs = {}
-    finally:
-        recv.close()
-        proc.join(timeout=1.0)
-        if proc.is_alive():
-            proc.kill()
-            proc.join()
-    made.update(theirs)
-    return made
 
 
 #: How far (in tolerances) a smooth edge curve may stray from its polyline before it is checked against the

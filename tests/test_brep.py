@@ -291,21 +291,6 @@ def test_hanging_filling_costs_one_face_not_the_run(sharp_box, monkeypatch):
     assert res.validity.n_faces == 5 and not res.ok
 
 
-def test_wait_child_kills_a_child_past_its_timeout():
-    import os
-    import time
-
-    from recon.brep._build import _wait_child
-
-    pid = os.fork()
-    if pid == 0:
-        time.sleep(60)
-        os._exit(0)
-    assert _wait_child(pid, 0.05) is None
-    with pytest.raises(ChildProcessError):  # reaped: no zombie left
-        os.waitpid(pid, os.WNOHANG)
-
-
 @pytest.mark.parametrize("bad", [
     dict(type="plane", params={}, ok=True),  # "surface fit params: expected one of (...), got keys []"
     dict(type="cylinder", params={"origin": (0, 0, 0), "axis": (0, 0, 1), "radius": -2.0}, ok=False),

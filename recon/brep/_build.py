@@ -14,8 +14,6 @@ from __future__ import annotations
 import functools
 import logging
 import os
-import signal
-import tempfile
 import time
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -34,7 +32,6 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepGProp import BRepGProp
 from OCP.BRepLib import BRepLib
 from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeFilling
-from OCP.BRepTools import BRepTools
 from OCP.Geom import Geom_BSplineCurve, Geom_Circle
 from OCP.GeomAbs import GeomAbs_Shape
 from OCP.GProp import GProp_GProps
@@ -47,10 +44,12 @@ from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED, TopAbs_SHELL, TopAbs_SOLID, TopAbs_VERTEX, TopAbs_WIRE
 from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopTools import TopTools_IndexedMapOfShape
-from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shape, TopoDS_Shell, TopoDS_Wire
+from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Face, TopoDS_Shell, TopoDS_Wire
 
+from .._parallel import Failure, FailureKind, isolated
 from ..curves import OUTSIDE, CurveNetwork, EdgeCurve, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
+from . import _serial  # noqa: F401  (faces cross the pipe from a child as BREP bytes)
 from ._surfaces import SurfaceModel, surface_model
 
 __all__ = ["BrepResult", "FaceRecord", "Validity", "build_solid", "shape_validity"]
@@ -442,7 +441,7 @@ def _face_on_own_curves(model: SurfaceModel, loops: list[np.ndarray], geo: Netwo
     joins them.
     """
     try:
-        face = _face_in_child(lambda: _own_curves_face(model, loops, geo, vote, precision), "ShapeFix_Face",
+        face = _face_in_child(_own_curves_face, (model, loops, geo, vote, precision), "ShapeFix_Face",
                               OWN_CURVES_TIMEOUT)
         return face, abs(_area(face))
     except BrepError as err:
@@ -887,15 +886,13 @@ def _checked_edges(loop, edges, context) -> list:
     return out
 
 
-def _filled_face(loops: list[np.ndarray], edges, points, context):
-    """Fallback: a B-spline face through the boundary edges and mesh points (BRepOffsetAPI_MakeFilling).
+def _filled_face(checked: list, points):
+    """Fallback: a B-spline face through the boundary edges ``checked`` (:func:`_checked_edges`) and mesh points
+    (BRepOffsetAPI_MakeFilling).
 
-    Returns the filled face and its surface; the caller trims that surface with the shared wires again
-    (so that the face keeps the network's edges) and keeps the filled face itself only if that fails.
+    The caller trims the face's surface with the shared wires again (so that the face keeps the network's edges)
+    and keeps the filled face itself only if that fails.
     """
-    if len(loops) != 1:
-        raise BrepError(f"MakeFilling fallback needs a single boundary loop, the part has {len(loops)}")
-    checked = _checked_edges(loops[0], edges, context)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     try:
@@ -911,80 +908,44 @@ def _filled_face(loops: list[np.ndarray], edges, points, context):
         if shape.IsNull() or shape.ShapeType() != TopAbs_FACE:
             raise BrepError("BRepOffsetAPI_MakeFilling returned no face")
         face = TopoDS.Face_s(shape)
-        surface = BRep_Tool.Surface_s(face)
     except BrepError:
         raise
     except Exception as err:  # OCC raises Standard_Failure subclasses
         raise BrepError(f"BRepOffsetAPI_MakeFilling failed: {type(err).__name__}: {err}") from err
-    return face, surface
+    return face
 
 
-def _wait_child(pid: int, timeout: float):
-    """``os.waitpid`` status of child ``pid``, or ``None`` after killing it once ``timeout`` seconds passed."""
-    deadline = time.monotonic() + timeout
-    delay = 0.002
-    while True:
-        done, status = os.waitpid(pid, os.WNOHANG)
-        if done:
-            return status
-        if time.monotonic() > deadline:
-            os.kill(pid, signal.SIGKILL)
-            os.waitpid(pid, 0)
-            return None
-        time.sleep(delay)
-        delay = min(0.05, 2 * delay)
-
-
-def _face_in_child(build, what: str, timeout: float):
-    """The face ``build()`` returns, computed in a forked child process killed after ``timeout`` seconds.
+def _face_in_child(build, args: tuple, what: str, timeout: float):
+    """The face ``build(*args)`` returns, computed in a child process killed after ``timeout`` seconds
+    (:func:`recon._parallel.isolated`).
 
     Some OCC calls can crash the whole process where no exception can be caught (a segmentation fault inside
     GeomPlate on noisy boundaries, box_fillet noisy20; inside ShapeFix_Face on a rocker-arm cone's own curves)
     or spin for minutes (``ProjLib_CompProjectedCurve`` inside ``GeomPlate_BuildPlateSurface``, box_fillet
     noisy05). In a child the crash or the hang costs one face, not the user's session: the face comes back
-    through a BREP file. ``build`` raises :class:`BrepError` for a face it cannot make.
+    pickled through the pipe as BREP bytes (:mod:`._serial`). ``build`` raises :class:`BrepError` for a face it
+    cannot make.
     """
-    if not hasattr(os, "fork"):
-        return build()
-    fd, path = tempfile.mkstemp(suffix=".brep", prefix="recon_face_")
-    os.close(fd)
-    try:
-        pid = os.fork()
-        if pid == 0:  # child: compute, write, leave without running the parent's cleanup
-            code = 3
-            try:
-                code = 0 if BRepTools.Write_s(build(), path) else 3
-            except BrepError as err:
-                with open(path, "w") as fh:
-                    fh.write(str(err))
-                code = 2
-            except BaseException:  # noqa: BLE001
-                code = 3
-            finally:
-                os._exit(code)
-        status = _wait_child(pid, timeout)
-        if status is None:
+    got = isolated(build, *args, timeout=timeout, what=what)
+    if isinstance(got, Failure):
+        if got.kind is FailureKind.TIMED_OUT:
             raise BrepError(f"{what} did not finish within {timeout:g} s; the part has no face")
-        if os.WIFSIGNALED(status):
-            raise BrepError(f"{what} crashed (signal {os.WTERMSIG(status)}); the part has no face")
-        code = os.WEXITSTATUS(status)
-        if code == 2:
-            with open(path) as fh:
-                raise BrepError(fh.read())
-        if code != 0:
-            raise BrepError(f"{what} failed")
-        shape = TopoDS_Shape()
-        if not BRepTools.Read_s(shape, path, BRep_Builder()) or shape.IsNull() or shape.ShapeType() != TopAbs_FACE:
-            raise BrepError(f"{what} returned no face")
-        return TopoDS.Face_s(shape)
-    finally:
-        os.unlink(path)
+        if got.kind is FailureKind.CRASHED and got.signal is not None:
+            raise BrepError(f"{what} crashed (signal {got.signal}); the part has no face")
+        if got.error_type == "BrepError":
+            raise BrepError(got.message)
+        raise BrepError(f"{what} failed")
+    if not isinstance(got, TopoDS_Face) or got.IsNull():
+        raise BrepError(f"{what} returned no face")
+    return got
 
 
 def _isolated_filled_face(loops, edges, points, context, *, timeout: float = FILLING_TIMEOUT):
     """:func:`_filled_face` in a child process (:func:`_face_in_child`); returns the face and its surface."""
-    face = _face_in_child(lambda: _filled_face(loops, edges, points, context)[0], "BRepOffsetAPI_MakeFilling",
-                          timeout)
+    if len(loops) != 1:
+        raise BrepError(f"MakeFilling fallback needs a single boundary loop, the part has {len(loops)}")
+    checked = _checked_edges(loops[0], edges, context)
+    face = _face_in_child(_filled_face, (checked, points), "BRepOffsetAPI_MakeFilling", timeout)
     return face, BRep_Tool.Surface_s(face)
 
 

@@ -28,13 +28,13 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import sys
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
+from .._parallel import Failure, Worker
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
@@ -617,29 +617,9 @@ def _fits_job(ctx: _Ctx, jobs):
 _JOBS = {"grow": _grow_job, "fits": _fits_job}
 
 
-def _serve(ctx: _Ctx, conn, parent_end) -> None:
-    """The worker's loop: a job ``(name, args)`` in, ``(True, result)`` or ``(False, why)`` out, until the
-    parent closes the pipe."""
-    import signal
-
-    parent_end.close()
-    # Ctrl-C reaches the whole process group: the parent stops the worker (close), the worker stays quiet
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    while True:
-        try:
-            name, args = conn.recv()
-        except (EOFError, OSError):
-            return
-        try:
-            out = (True, _JOBS[name](ctx, *args))
-        except Exception as err:  # the parent does the job itself, and meets the error there if it is one
-            out = (False, f"{type(err).__name__}: {err}")
-        conn.send(out)
-
-
 class _Worker:
-    """A second process for :func:`_seed_regions` and :func:`_refit`, forked with the context (its arrays are
-    shared, copy on write), answering one job at a time over a pipe: :meth:`submit`, then :meth:`get`.
+    """The decomposition's second process (:class:`recon._parallel.Worker` holding the context, serving
+    :data:`_JOBS`): :meth:`submit`, then :meth:`get`.
 
     It can never stall the parent nor change the result: when it dies, fails a job or gives no answer within
     :data:`WORKER_TIMEOUT`, :meth:`get` returns None, the worker is stopped for good, and the callers do the work
@@ -648,71 +628,51 @@ class _Worker:
     """
 
     def __init__(self, ctx: _Ctx):
-        import multiprocessing
+        self._worker = Worker(ctx, _JOBS, name="recon-decompose")
 
-        mp = multiprocessing.get_context("fork")
-        self._conn, child = mp.Pipe()
-        self._proc = mp.Process(target=_serve, args=(ctx, child, self._conn), daemon=True, name="recon-decompose")
-        self._proc.start()
-        child.close()
-        self.alive = True
+    @property
+    def alive(self) -> bool:
+        return self._worker.alive
 
     @staticmethod
     def available() -> bool:
-        """Whether the worker can be forked here: on Linux (macOS's system libraries are not safe to use in a
-        forked child, Windows cannot fork)."""
-        return sys.platform.startswith("linux")
+        """Whether a second process can be had here: with fork (Linux) or spawn (elsewhere), see
+        :func:`recon._parallel.start_method`."""
+        return True
 
     @classmethod
     def start(cls, ctx: _Ctx) -> "_Worker | None":
-        """A worker, or None where none can be had (then one process does all): not on Linux, inside a daemonic
-        process (which may not have children), or when the fork fails."""
-        if not cls.available():
-            return None
+        """A worker, or None where none can be had (then one process does all): inside a daemonic process (which
+        may not have children), or when starting it fails."""
         try:
             return cls(ctx)
-        except (OSError, AssertionError) as err:  # multiprocessing asserts that a daemon has no children
+        except OSError as err:
             log.warning("decomposition: no second process (%s), going on in one", err or type(err).__name__)
             return None
 
     def submit(self, name: str, *args) -> bool:
         """Send a job of :data:`_JOBS`; False when the worker is gone (nothing was sent)."""
-        if not self.alive:
-            return False
-        try:
-            self._conn.send((name, args))
-        except (OSError, ValueError) as err:
-            self._stop(f"cannot reach it ({err})")
-            return False
-        return True
+        was = self._worker.alive
+        sent = self._worker.submit(name, *args)
+        if was and not sent:
+            self._stop()
+        return sent
 
     def get(self):
         """The answer to the job submitted last, or None (the caller then does it itself)."""
-        if not self.alive:
+        if not self._worker.alive:
             return None
-        try:
-            if not self._conn.poll(WORKER_TIMEOUT):
-                self._stop(f"no answer in {WORKER_TIMEOUT:g} s")
-                return None
-            ok, value = self._conn.recv()
-        except (EOFError, OSError):
-            self._stop(f"it ended (exit code {self._proc.exitcode})")
+        got = self._worker.get(WORKER_TIMEOUT)
+        if isinstance(got, Failure):
+            self._stop()
             return None
-        if not ok:
-            self._stop(f"a job failed: {value}")
-            return None
-        return value
+        return got
 
-    def _stop(self, why: str) -> None:
-        log.warning("decomposition: second process stopped, going on in one: %s", why)
-        self.close()
+    def _stop(self) -> None:
+        log.warning("decomposition: second process stopped, going on in one: %s", self._worker.stopped)
 
     def close(self) -> None:
-        self.alive = False
-        self._conn.close()
-        if self._proc.is_alive():
-            self._proc.kill()
-        self._proc.join()
+        self._worker.close()
 
 
 def _refit(ctx: _Ctx, label: np.ndarray, fits: list, memo: dict | None = None) -> list:
