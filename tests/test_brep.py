@@ -221,14 +221,15 @@ def test_fitted_cylinder_mesh_gives_three_face_solid():
 
 def _refuse_faces_on_the_network_and_fillings(monkeypatch):
     """Every face made to fail on the network's edges (on copies of them too) and as a filling."""
-    from recon.brep import _build
+    from recon.brep import _faces, _seam, _strategies
     from recon.errors import BrepError
 
     def refuse(*args, **kwargs):
         raise BrepError("refused by the test")
 
-    monkeypatch.setattr(_build, "_face_on_surface", refuse)
-    monkeypatch.setattr(_build, "_fallback_face", lambda *a, **k: (None, 0.0, "failed", "refused by the test"))
+    for module in (_faces, _seam, _strategies):  # every module that builds a face on the shared edges
+        monkeypatch.setattr(module, "face_on_surface", refuse)
+    monkeypatch.setattr(_strategies, "fallback_face", lambda *a, **k: (None, 0.0, "failed", "refused by the test"))
 
 
 def _sewn_cylinder():
@@ -277,10 +278,10 @@ def test_fixture_true_labels_fitted_surfaces(part, variant):
 def test_hanging_filling_costs_one_face_not_the_run(sharp_box, monkeypatch):
     # MakeFilling spun for minutes on box_fillet/noisy05 (ProjLib inside GeomPlate). Its child is killed at the
     # timeout: the part gets a "failed" record, the five other sides are still built on their own planes.
-    from recon.brep import _build
+    from recon.brep import _strategies
     from recon.fit import SurfaceFit
 
-    monkeypatch.setattr(_build, "FILLING_TIMEOUT", 1e-4)
+    monkeypatch.setattr(_strategies, "FILLING_TIMEOUT", 1e-4)
     v, f, lab = sharp_box
     fits = _fits_by_label(v, f, lab, 0.01)
     fits[4] = SurfaceFit("bspline", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0, ok=False, reason="test")
@@ -377,7 +378,7 @@ def test_wire_keeps_the_shared_edges_it_is_given():
     from OCP.TopAbs import TopAbs_EDGE
     from OCP.TopExp import TopExp_Explorer
 
-    from recon.brep._build import _wire
+    from recon.brep._edges import shared_wire as _wire
 
     a, b1, b2, c = _vertex(0, 0, 1e-7), _vertex(10, 0, 0.05), _vertex(10, 0.02, 0.05), _vertex(0, 10, 1e-7)
     edges = [BRepBuilderAPI_MakeEdge(a, b1).Edge(), BRepBuilderAPI_MakeEdge(b2, c).Edge(),
@@ -399,7 +400,7 @@ def test_a_vertex_merged_by_one_face_reaches_the_edges_of_the_next():
     from OCP.TopExp import TopExp
     from OCP.TopoDS import TopoDS
 
-    from recon.brep._build import _hand_on, _subshapes, _wire
+    from recon.brep._edges import hand_on as _hand_on, shared_wire as _wire, subshapes as _subshapes
 
     a, b, merged, c = _vertex(0, 0, 1e-7), _vertex(10, 0, 1e-3), _vertex(10, 0, 1e-2), _vertex(0, 10, 1e-7)
     mine = BRepBuilderAPI_MakeEdge(a, b).Edge()
@@ -418,7 +419,7 @@ def test_orientation_conflicts_count_the_edges_of_a_face_turned_over():
     from OCP.BRep import BRep_Builder
     from OCP.TopoDS import TopoDS_Shell
 
-    from recon.brep._build import orientation_conflicts
+    from recon.brep._shell import orientation_conflicts
 
     def shell_of(faces):
         builder, shell = BRep_Builder(), TopoDS_Shell()
@@ -498,10 +499,10 @@ def test_tessellation_for_pictures_leaves_out_a_face_the_mesher_cannot_mesh(monk
 
 
 def test_filling_through_every_sample_only_where_every_third_is_off(monkeypatch):
-    """The filling fallback's point sets (recon.brep._build.FILLING_POINTS): every 3rd of 48 samples first; all
+    """The filling fallback's point sets (recon.brep._filling.FILLING_POINTS): every 3rd of 48 samples first; all
     of them when that gives no face, or a face off the part's area by more than AREA_RATIO_WARNING, and then
     the face whose area is nearer; 10 samples (fewer than 16) are all of them, once."""
-    from recon.brep import _build
+    from recon.brep import _filling
 
     calls = []
     areas = {}
@@ -511,7 +512,7 @@ def test_filling_through_every_sample_only_where_every_third_is_off(monkeypatch)
         a = areas.get(len(points))
         return (f"face{len(points)}", a, "filled", "") if a else (None, 0.0, "failed", f"no face from {len(points)}")
 
-    monkeypatch.setattr(_build, "_fallback_face_through", through)
+    monkeypatch.setattr(_filling, "fallback_face_through", through)
     pts = np.zeros((48, 3))
     cases = [  # areas by point count, the part's area, the calls expected, the face expected
         ({16: 1.5, 48: 1.0}, 1.0, [16], "face16"),     # within 2× of the part's: kept
@@ -524,13 +525,13 @@ def test_filling_through_every_sample_only_where_every_third_is_off(monkeypatch)
         calls.clear()
         areas.clear()
         areas.update(got_areas)
-        face, _, _, _ = _build._fallback_face([], [], pts, pts, None, precision=1e-3, timeout=5.0,
-                                              expected_area=expected_area)
+        face, _, _, _ = _filling.fallback_face([], [], pts, pts, None, precision=1e-3, timeout=5.0,
+                                                expected_area=expected_area)
         assert (calls, face) == (expected_calls, expected_face)
     calls.clear()
     areas.clear()
-    face, _, status, msg = _build._fallback_face([], [], pts[:10], pts[:10], None, precision=1e-3, timeout=5.0,
-                                                 expected_area=1.0)
+    face, _, status, msg = _filling.fallback_face([], [], pts[:10], pts[:10], None, precision=1e-3, timeout=5.0,
+                                                   expected_area=1.0)
     assert calls == [10] and (face, status, msg) == (None, "failed", "no face from 10")
 
 
@@ -543,7 +544,7 @@ def test_a_boundary_that_crosses_itself_is_no_face_on_its_surface():
     from OCP.gp import gp_Pnt
     from OCP.ShapeBuild import ShapeBuild_ReShape
 
-    from recon.brep import _build
+    from recon.brep import _faces
     from recon.brep._surfaces import surface_model
     from recon.errors import BrepError
     from recon.fit import SurfaceFit
@@ -553,8 +554,8 @@ def test_a_boundary_that_crosses_itself_is_no_face_on_its_surface():
     corners = [BRepBuilderAPI_MakeVertex(gp_Pnt(*p)).Vertex() for p in [(0, 0, 0), (1, 1, 0), (1, 0, 0), (0, 1, 0)]]
     edges = [BRepBuilderAPI_MakeEdge(corners[i], corners[(i + 1) % 4]).Edge() for i in range(4)]
     with pytest.raises(BrepError, match="split into 2 pieces"):
-        _build._face_on_surface(surface_model(plane), [np.array([1, 2, 3, 4])], edges, 1, ShapeBuild_ReShape(),
-                                precision=1e-3)
+        _faces.face_on_surface(surface_model(plane), [np.array([1, 2, 3, 4])], edges, 1, ShapeBuild_ReShape(),
+                               precision=1e-3)
 
 
 def test_a_band_round_a_cylinder_gets_its_seam_at_the_middle_of_its_longest_edge():
@@ -573,7 +574,7 @@ def test_a_band_round_a_cylinder_gets_its_seam_at_the_middle_of_its_longest_edge
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    from recon.brep import _build
+    from recon.brep import _seam
     from recon.brep._surfaces import surface_model
     from recon.fit import SurfaceFit
 
@@ -592,8 +593,8 @@ def test_a_band_round_a_cylinder_gets_its_seam_at_the_middle_of_its_longest_edge
     geo = SimpleNamespace(coords=np.concatenate(coords), offsets=np.arange(0, 61 * 4, 60)[:5])
     cylinder = SurfaceFit("cylinder", {"axis_point": [0.0, 0.0, 0.0], "axis_dir": [0.0, 0.0, 1.0], "radius": 1.0},
                           {"max": 0.0, "rms": 0.0, "p99": 0.0}, 100)
-    split = _build._seam_split(surface_model(cylinder), [np.array([1, 2]), np.array([3, 4])], edges, geo,
-                               ShapeBuild_ReShape())
+    split = _seam.seam_split(surface_model(cylinder), [np.array([1, 2]), np.array([3, 4])], edges, geo,
+                             ShapeBuild_ReShape())
     assert split is not None
     turned, edge, pieces = split
     assert edge.IsSame(edges[0])
@@ -615,14 +616,14 @@ def test_a_face_on_its_mesh_boundary_where_the_placed_corners_cross():
     plane's wire through the placed corners crosses itself, and no face bounded by it exists. The mesh's own
     boundary does not cross itself. Here A(0,0) B(10,0) C(10,1) D(-1,0.5) is the mesh's quadrilateral (area 8);
     D placed at (1,-0.5) puts C→D across A→B at (4, 0)."""
-    from recon.brep import _build
+    from recon.brep import _faces
     from recon.brep._surfaces import surface_model
     from recon.fit import SurfaceFit
 
     plane = surface_model(SurfaceFit("plane", {"origin": [5.0, 0.5, 0.0], "normal": [0.0, 0.0, 1.0]},
                                      {"max": 0.0, "rms": 0.0, "p99": 0.0}, 4))
 
-    class Polylines:  # what `_face_on_own_curves` reads of a NetworkGeometry or a CurveNetwork
+    class Polylines:  # what `face_on_own_curves` reads of a NetworkGeometry or a CurveNetwork
         def __init__(self, corners):
             c = np.column_stack([np.asarray(corners, dtype=float), np.zeros(4)])
             self.lines = [c[[i, (i + 1) % 4]] for i in range(4)]
@@ -633,19 +634,19 @@ def test_a_face_on_its_mesh_boundary_where_the_placed_corners_cross():
     loops = [np.array([1, 2, 3, 4])]
     placed = Polylines([(0, 0), (10, 0), (10, 1), (1, -0.5)])
     mesh = Polylines([(0, 0), (10, 0), (10, 1), (-1, 0.5)])
-    assert _build._face_on_own_curves(plane, loops, placed, 1, precision=1e-3) == (None, 0.0)
-    face, area = _build._face_on_own_curves(plane, loops, mesh, 1, precision=1e-3)
+    assert _faces.face_on_own_curves(plane, loops, placed, 1, precision=1e-3) == (None, 0.0)
+    face, area = _faces.face_on_own_curves(plane, loops, mesh, 1, precision=1e-3)
     assert face is not None and area == pytest.approx(8.0, rel=1e-9)
 
 
 def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
     # As above with the placed corners refused too (as where they cross): the last resort is each face on the
     # mesh's own boundary in its surface's parameters, and sewing closes the three into one valid solid.
-    from recon.brep import _build
+    from recon.brep import _faces
     from recon.curves import CurveNetwork
     from recon.errors import BrepError
 
-    own_curves_face = _build._own_curves_face
+    own_curves_face = _faces.own_curves_face
 
     def on_mesh_only(model, loops, geo, vote, precision):
         if not isinstance(geo, CurveNetwork):
@@ -653,6 +654,6 @@ def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
         return own_curves_face(model, loops, geo, vote, precision)
 
     _refuse_faces_on_the_network_and_fillings(monkeypatch)
-    monkeypatch.setattr(_build, "_own_curves_face", on_mesh_only)
+    monkeypatch.setattr(_faces, "own_curves_face", on_mesh_only)
     res = _sewn_cylinder()
     assert sum("built on its mesh boundary" in w for w in res.warnings) == 3

@@ -4,7 +4,6 @@ import os
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -188,7 +187,7 @@ import os, sys, time
 sys.path.insert(0, {tests!r})
 import numpy as np, trimesh
 from test_brep import _axis_labels, _fits_by_label
-from recon.brep import _build as _filling
+from recon.brep import _filling
 from recon.curves import curve_network
 from recon.brep import build_solid
 from recon.fit import SurfaceFit
@@ -197,7 +196,7 @@ def announce_and_hang(*args):
     print(os.getpid(), flush=True)
     time.sleep(120)
 
-_filling._filled_face = announce_and_hang
+_filling.filled_face = announce_and_hang
 m = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
 v, f = np.asarray(m.vertices), np.asarray(m.faces)
 lab = _axis_labels(m)

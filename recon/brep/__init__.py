@@ -4,8 +4,9 @@ Curve network + one surface per part → a closed, valid solid (:func:`build_sol
 with a name and colour per face, BREP or STL (:func:`write_shape`).
 """
 
-from ._build import KIND_COLOURS, BrepResult, FaceRecord, Validity, build_solid, shape_validity
+from ._build import build_solid
 from ._export import read_step_faces, write_shape
+from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity, shape_validity
 from ._step_read import read_step  # noqa: F401  (recon compare; see recon.deviation)
 from ._surfaces import SurfaceModel, surface_model
 from ._tessellate import labelled_tessellation, result_tessellation
@@ -14,6 +15,7 @@ __all__ = [
     "KIND_COLOURS",
     "BrepResult",
     "FaceRecord",
+    "FaceStatus",
     "SurfaceModel",
     "Validity",
     "build_solid",

@@ -29,7 +29,7 @@ from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
 from .._io import atomic_path
 from ..errors import ExportError, InputError
-from ._build import KIND_COLOURS, BrepResult
+from ._result import KIND_COLOURS, BrepResult
 
 __all__ = ["read_step_faces", "write_shape"]
 
