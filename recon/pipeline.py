@@ -25,7 +25,7 @@ from .decompose._regions import _unique_inverse, split_by_fitting
 from .decompose._topology import unique
 from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
-from .fit._select import SIGMAS_PER_TOLERANCE
+from ._tolerance import SIGMAS_PER_TOLERANCE, tolerance_for
 from .fit._surfaces import row_norms
 from .mesh import Mesh, clean_mesh, load_mesh
 from .mesh._topology import stable_argsort, unique_first
@@ -1366,7 +1366,7 @@ def convert(
     step("decompose", 1.0)
 
     if tolerance is None:
-        tolerance = getattr(dec, "tolerance", None) or max(4.0 * float(dec.noise), 1e-4 * mesh.diagonal)
+        tolerance = getattr(dec, "tolerance", None) or tolerance_for(dec.noise, mesh.diagonal)
         log.info("tolerance %.4g", tolerance)
     elif not tolerance > 0:
         raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")

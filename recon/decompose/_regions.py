@@ -35,6 +35,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._parallel import Failure, Worker
+from .._tolerance import MESH_FLOOR, SIGMAS_PER_TOLERANCE, tolerance_for
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
@@ -83,11 +84,8 @@ SEED_REFINE = ()
 MAX_FIT_POINTS = 3000
 #: Border refinement passes.
 REFINE_PASSES = 4
-#: Floor of the distance tolerance, as a share of the bounding-box diagonal. A tessellated CAD model has
-#: exact planes (zero hinge noise) but its curved faces carry the exporter's rounding and chordal
-#: placement: block.off's bosses deviate from their best cylinder by 0.016 max (3.4e-4 of the diagonal).
-#: At 1e-3 the rotated clean rounded box fitted cones to the ends of its fillets (11 patches for 6).
-TOL_FLOOR = 5e-4
+#: Floor of the distance tolerance, as a share of the bounding-box diagonal (see recon._tolerance.MESH_FLOOR).
+TOL_FLOOR = MESH_FLOOR
 #: Fewest triangles for which :func:`fitted_regions` forks a second process (``jobs`` ≥ 2): on smaller meshes
 #: the fork and the messages cost more than growing two seeds at once saves (4–5k-triangle fixtures: prism
 #: 0.06 → 0.10 s, the coarse ones +0.03–0.05 s; casting, 10k, 2.46 → 2.35 s; the 100k box 3.7 → 2.4–2.8 s).
@@ -261,13 +259,13 @@ def _accept(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray) -> np.ndarray:
 
 
 def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> float:
-    """``max(4 σ, TOL_FLOOR · diag)`` with σ the robust spread of the vertices about the largest smooth components' fits.
+    """:func:`recon._tolerance.tolerance_for` (floor :data:`TOL_FLOOR`) with σ the robust spread of the vertices about
+    the largest smooth components' fits.
 
     The residual of a fitted face is the noise and nothing else; local estimators (smoothing, k-NN quadrics)
     also see the features and the tessellation when the triangles are large compared with the features.
     """
-    floor = TOL_FLOOR * diag
-    ctx.tol = max(4.0 * noise, floor)
+    ctx.tol = tolerance_for(noise, diag, floor=TOL_FLOOR)
     res = []
     total = sum(len(f) for f in comp_faces)
     used = 0
@@ -288,7 +286,7 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     r = np.concatenate(res)
     sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
     log.info("noise from fitted faces: sigma %.4g (first estimate %.4g)", sigma, noise)
-    return max(4.0 * sigma, floor)
+    return tolerance_for(sigma, diag, floor=TOL_FLOOR)
 
 
 def _fit_key(kind: str, faces: np.ndarray):
@@ -1058,7 +1056,7 @@ def fitted_regions(
     ctx = _Ctx(V, F, adj, pairs, edges, fn, vnormal, tolerance, angle, diag, corners, centroid)
     ctx.fa = area
     ctx.wfn_t = np.ascontiguousarray((area[:, None] * fn).T)  # area-weighted normals (what _region_normals sums)
-    ctx.crease = SEED_CREASE_COS if 4.0 * noise < TOL_FLOOR * diag else -2.0
+    ctx.crease = SEED_CREASE_COS if SIGMAS_PER_TOLERANCE * noise < TOL_FLOOR * diag else -2.0
     label = np.full(m, -1, np.int64)
     fits: list = []
 

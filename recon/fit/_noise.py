@@ -7,6 +7,7 @@ import logging
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .._tolerance import tolerance_for
 from ..errors import FitError
 from ._surfaces import as_points
 
@@ -98,7 +99,7 @@ def noise_sigma(points, normals=None, *, k: int = 20) -> float:
 
 
 def default_tolerance(points, normals=None, *, sigma: float | None = None) -> float:
-    """The default fitting tolerance: ``max(4·σ, 1e-4 · bounding-box diagonal)``.
+    """The default fitting tolerance: ``max(4·σ, 1e-4 · bounding-box diagonal)`` (:func:`recon._tolerance.tolerance_for`).
 
     4σ: the 99th percentile of |N(0, σ)| is 2.58σ, so a fit of the right type passes the acceptance rule
     (p99 ≤ tol, max ≤ 2·tol; see :func:`recon.fit.within_tolerance`) with room for its own parameter error,
@@ -117,4 +118,4 @@ def default_tolerance(points, normals=None, *, sigma: float | None = None) -> fl
     if sigma is None:
         sigma = noise_sigma(pts, normals)
     diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-    return max(4.0 * float(sigma), 1e-4 * diag)
+    return tolerance_for(sigma, diag)

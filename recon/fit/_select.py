@@ -27,9 +27,6 @@ ANALYTIC_FITTERS = {
 }
 #: Free parameters of each analytic type (the order above is by them).
 N_PARAMS = {"plane": 3, "sphere": 4, "cylinder": 5, "cone": 6, "torus": 7}
-#: The noise σ a tolerance stands for on a noisy mesh: the default tolerance is 4σ
-#: (:func:`recon.fit.default_tolerance`).
-SIGMAS_PER_TOLERANCE = 4.0
 #: Median |d| of a normal residual is 0.6745σ: the robust scale is 1.4826 × the median.
 MAD_TO_SIGMA = 1.4826
 #: A type within tolerance misfits its points when its residual scale is above √2 × the noise: a systematic
