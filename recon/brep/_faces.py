@@ -43,22 +43,18 @@ from ._surfaces import SurfaceModel
 log = logging.getLogger(__name__)
 
 
-#: Seconds a face on its own curves (:func:`face_on_own_curves`) may take; each took well under 0.1 s on crank
-#: and rocker-arm, where one crashed ShapeFix_Face instead.
+#: Seconds a face on its own curves may take in its child: such faces take well under a tenth of it; one that
+#: takes longer spins (the evidence: bench/brep.md, "OWN_CURVES_TIMEOUT").
 OWN_CURVES_TIMEOUT = 5.0
 
 
-#: ShapeFix_Face works at this share of the model tolerance (OCC's default is 1e-7). At the full tolerance a
-#: 30 × 20 × 10 box of B-spline faces lost 0.09 % of its volume (p-curves approximated that loosely); at 0.1
-#: and 0.01 the box is exact and box_fillet noisy20 gets all 26 faces on their own surfaces (25 at 1e-7).
+#: ShapeFix_Face's precision as a share of the tolerance (OCC's default is 1e-7): p-curves approximated at the
+#: full tolerance move a face's area by up to it; a tenth of it keeps them exact (bench/brep.md).
 PRECISION_SHARE = 0.1
 
 
-#: A fit out of tolerance still bounds its own face ("poor") before any filling is tried when its RMS deviation
-#: is within this many tolerances. Measured on fandisk, fandisk-b, casting and rocker-arm2500, faces on such fits
-#: beat MakeFilling faces everywhere: fandisk 15 fillings and 13 free edges -> 39 own faces, a valid solid, mesh→shape
-#: p95 3.8 % -> 0.066 % of the diagonal; fandisk-b p95 2.9 % -> 0.030 %. 1×, 2× and 4× improved step by step; with
-#: no limit casting's max deviation rose from 1.9 % to 8.0 % (fits far off), so 4×.
+#: A fit out of tolerance still bounds its own face ("poor") before any filling is tried when its RMS deviation is
+#: within this many tolerances: nearer, its face beats a filling; farther, the fit is of a wrong shape (bench/brep.md).
 OWN_SURFACE_RMS = 4.0
 
 

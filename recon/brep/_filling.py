@@ -20,28 +20,24 @@ from ._result import FaceStatus, face_area
 from ._surfaces import SurfaceModel
 
 
-#: Seconds one ``BRepOffsetAPI_MakeFilling`` may take before it is given up. Every one that succeeded on
-#: fandisk and rocker-arm2500 (18 faces) took 0.04–0.41 s; the ones that spin do so for minutes.
+#: Seconds one ``BRepOffsetAPI_MakeFilling`` may take: ten times the slowest that succeeded; the ones that spin do
+#: so for minutes (bench/brep.md).
 FILLING_TIMEOUT = 5.0
 
 
-#: Seconds all filling fallbacks of one :func:`build_solid` may take together: a mesh whose every part needs one
-#: must still end in a result (with failed faces) rather than run for minutes (crank: 36 faces to fill).
+#: Seconds all filling fallbacks of one build may take together (six times one filling's): a mesh whose every part
+#: needs one still ends in a result, with failed faces, in bounded time (bench/brep.md).
 FILLING_BUDGET = 30.0
 
 
-#: A face whose area differs from its part's mesh area by more than this factor either way gets a warning: a
-#: MakeFilling surface can balloon between its constraints (abc_00000050: a filling face of 24× its part's area,
-#: 96 % of the diagonal away from the mesh, in a solid BRepCheck calls valid). Refusing such faces was measured
-#: too: abc lost its validity (a hole instead), nothing else changed, so it is reported rather than refused.
+#: A face whose area is off its part's mesh area by more than this factor either way is named in the warnings: a
+#: MakeFilling surface can balloon between its constraints (reported, not refused: bench/brep.md).
 AREA_RATIO_WARNING = 2.0
 
 
-#: The filling fallback's point sets, in turn: every ``len // 16``-th sample of the part (of the 48 the network
-#: keeps, every 3rd), then every one (0) when the first face is missing or far off the part's area. Through every
-#: 3rd, box_fillet coarse's filling of a part that wraps a corner had 3.75× the part's area and reached 82 units
-#: (105 % of the diagonal) from the mesh; through every sample, 24. Through every sample alone, casting and
-#: rocker-arm were no longer solids (casting's patch_58: its filling not valid bounded by the shared edges).
+#: The filling's point sets, in turn: every ``len // 16``-th sample of the part (of the 48 the network keeps, every
+#: 3rd), then every one (0) when the first face is missing or off the part's area by more than AREA_RATIO_WARNING:
+#: few points let the surface balloon, all of them alone over-constrain it (bench/brep.md).
 FILLING_POINTS = (16, 0)
 
 

@@ -20,11 +20,10 @@ from ._surfaces import SurfaceModel
 log = logging.getLogger(__name__)
 
 
-#: A face on a cylinder or cone whose two boundary loops each wind once round the axis gets its seam from
-#: ShapeFix_Face (FixMissingSeam) through the edge end nearest to the surface's u = 0. Where every vertex sits
-#: beside an edge that runs along the axis (crank's journal: both ends of two pins that cross it) the seam runs
-#: along that edge, and the face is cut into a sliver and the rest. On such a failure the face is tried again
-#: with its longest edge across the turn split at its middle and the surface's u = 0 put there.
+#: Surfaces whose band between two loops that each wind once round the axis may need its seam moved: ShapeFix_Face
+#: puts the seam through the vertex nearest u = 0, and where that vertex sits beside an edge along the axis the seam
+#: runs along it and cuts the face in two; the face is then tried again with its seam at the middle of its longest
+#: edge across the turn (bench/brep.md).
 SEAM_SURFACES = ("cylinder", "cone")
 
 

@@ -53,7 +53,7 @@ log = logging.getLogger(__name__)
 #: Fewest distinct vertices a seed must hold before it is fitted.
 SEED_VERTICES = 16
 #: On a noise-free mesh a seed disc does not grow across a dihedral angle above 30° (a facet of a 12-sided
-#: cylinder turns by 30°). Not on noisy meshes: there the noise makes such angles (box_fillet noisy20 88 → 73 %).
+#: cylinder turns by 30°). Not on noisy meshes, where the noise makes such angles (bench/decompose.md).
 SEED_CREASE_COS = float(np.cos(np.deg2rad(30.0)))
 #: Fewest vertices a region needs to count (a fit on fewer is not evidence of a surface).
 MIN_REGION_VERTICES = 12
@@ -64,21 +64,19 @@ TANGENT_DEG = 20.0
 #: Share of a component that split regions must cover for the split to be kept (else: one free-form patch).
 MIN_SPLIT_COVER = 0.5
 #: A primary region enclosed by a free-form component and tangent to it is part of it when it has less than this
-#: share of the component's area (the lofted side's stray cylinders have about 1 %).
+#: share of the component's area: a stray fit on a free-form face covers a few % of it (bench/decompose.md).
 ISLAND_SHARE = 0.2
 #: A free-form face is one that the analytic fitters could only tile: at least this many curved regions in it.
 MIN_TILES = 3
 #: ... and it is smooth: at most this share of the borders between its tiles (in mesh edges) meet at TANGENT_DEG or
-#: more. Measured: lofted 0 (clean, noisy05, open) and 0.027 (noisy20); revolved/noisy20's side, a cylinder, a cone
-#: and a torus with two 37° creases between them, 0.24.
+#: more: a free-form face's tiles meet tangentially but for noise, analytic faces at creases (bench/decompose.md).
 MAX_CREASE_SHARE = 0.1
 #: Surface types of blends (a planar chamfer stays in the critical region unless its own smooth component fits).
 CURVED = ("sphere", "cylinder")
 #: Distance tolerance of the patches' first growth into the critical region, in tolerances (4σ → 1.5σ).
 STRICT = 0.375
 #: Surface types whose seed discs get a least-squares fit when the closed form is only near: none — a seed is
-#: judged by its closed form (least squares on every near miss made most of the time on real meshes, and
-#: rescued seeds straddling two surfaces rather than good ones: revolved clean 6/6 faces without, 5/6 with).
+#: judged by its closed form; least squares on near misses rescued seeds straddling two surfaces (bench/decompose.md).
 SEED_REFINE = ()
 #: Fits run on at most this many vertices (an even subset of a larger region).
 MAX_FIT_POINTS = 3000
@@ -86,9 +84,8 @@ MAX_FIT_POINTS = 3000
 REFINE_PASSES = 4
 #: Floor of the distance tolerance, as a share of the bounding-box diagonal (see recon._tolerance.MESH_FLOOR).
 TOL_FLOOR = MESH_FLOOR
-#: Fewest triangles for which :func:`fitted_regions` forks a second process (``jobs`` ≥ 2): on smaller meshes
-#: the fork and the messages cost more than growing two seeds at once saves (4–5k-triangle fixtures: prism
-#: 0.06 → 0.10 s, the coarse ones +0.03–0.05 s; casting, 10k, 2.46 → 2.35 s; the 100k box 3.7 → 2.4–2.8 s).
+#: Fewest triangles for which :func:`fitted_regions` starts a second process (``jobs`` ≥ 2): on smaller meshes
+#: the start and the messages cost more than growing two seeds at once saves (bench/decompose.md).
 PARALLEL_MIN_TRIANGLES = 20_000
 
 
@@ -598,8 +595,7 @@ def _speculation_holds(spec: _Speculation, got, free, tried) -> bool:
 
 #: How long the parent waits for the worker's answer to one job before it stops the worker and does the work
 #: itself (a worker that died answers at once: its end of the pipe closes). A job is one seed's growth or half a
-#: refinement pass's fits, the same work the parent does meanwhile: the largest, on the 1M box, take a few
-#: seconds; the whole 1M decomposition takes 23 s.
+#: refinement pass's fits, a few seconds on the largest meshes: this bounds a hung worker's cost (bench/decompose.md).
 WORKER_TIMEOUT = 120.0
 
 
