@@ -220,3 +220,54 @@ def test_a_face_built_in_a_child_leaves_no_file_when_the_parent_is_killed(tmp_pa
     proc.wait()
     assert _gone(child, 10.0)
     assert list(private.iterdir()) == []
+
+
+def _square_edges_and_bump():
+    """The four edges of the unit square in z = 0 and 25 points of a bump z = 0.1 sin(πx) sin(πy) inside it."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeVertex
+    from OCP.gp import gp_Pnt
+
+    corners = [BRepBuilderAPI_MakeVertex(gp_Pnt(*p)).Vertex() for p in [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]]
+    edges = [BRepBuilderAPI_MakeEdge(corners[i], corners[(i + 1) % 4]).Edge() for i in range(4)]
+    x, y = np.meshgrid(np.linspace(0.1, 0.9, 5), np.linspace(0.1, 0.9, 5))
+    pts = np.column_stack([x.ravel(), y.ravel(), 0.1 * np.sin(np.pi * x.ravel()) * np.sin(np.pi * y.ravel())])
+    return edges, pts
+
+
+def test_a_filling_face_built_under_spawn_is_the_one_built_under_fork():
+    """The child's OCC inputs and its face cross the pipe as BREP text (recon.brep._serial): under spawn the edges
+    go to the child that way too, and the face that comes back is byte for byte the one a forked child builds."""
+    from recon.brep._filling import filled_face
+    from recon.brep._result import face_area
+    from recon.brep._serial import shape_bytes
+
+    edges, pts = _square_edges_and_bump()
+    here = filled_face(edges, pts)
+    fork = isolated(filled_face, edges, pts, timeout=120, method="fork")
+    spawn = isolated(filled_face, edges, pts, timeout=120, method="spawn")
+    assert shape_bytes(fork) == shape_bytes(here) == shape_bytes(spawn)
+    assert face_area(spawn) > 1.0  # the bump's area is over the square's
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_the_decomposition_with_a_second_process_is_the_same_under_fork_and_spawn(method, monkeypatch, caplog):
+    from recon import _parallel
+    from recon.decompose import _regions, decompose
+    from recon.fixtures import load_fixture
+
+    fx = load_fixture("plate_holes", "noisy20")
+    monkeypatch.setattr(_regions, "PARALLEL_MIN_TRIANGLES", 0)  # the fixture is below the size it pays from
+    one = decompose((fx.vertices, fx.faces), jobs=1)
+    monkeypatch.setattr(_parallel, "start_method", lambda: method)
+    started = []
+    worker = _regions._Worker.start
+
+    def start(cls, ctx):
+        started.append(worker(ctx))
+        return started[-1]
+
+    monkeypatch.setattr(_regions._Worker, "start", classmethod(start))
+    two = decompose((fx.vertices, fx.faces), jobs=2)
+    assert len(started) == 1 and started[0] is not None  # a second process took part
+    assert "second process stopped" not in caplog.text  # and answered every job
+    assert np.array_equal(one.labels, two.labels)
