@@ -97,13 +97,13 @@ def decompose(
         Fitted regions smaller than this join the critical region (default :func:`default_min_area`).
     tolerance : float, optional
         Distance within which a triangle lies on a patch's fitted surface (default ``max(4 σ, 5e-4 · diagonal)``
-        with σ the estimated noise, the rule of :func:`recon.fit.default_tolerance`).
+        with σ the estimated noise, the rule of :func:`recon._tolerance.tolerance_for`).
     features : FeatureField, optional
         A precomputed feature field (then ``scale`` is ignored).
     progress : callable(stage: str, fraction: float), optional
     jobs : int, optional
         Processes to use (default: the cores this process may run on). From 2 on, the patches' regions grow
-        two at a time in a forked second process; the decomposition is the same for any number.
+        two at a time in a second process (:mod:`recon._parallel`); the decomposition is the same for any number.
 
     Returns
     -------
