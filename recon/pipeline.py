@@ -26,7 +26,7 @@ from .decompose._topology import unique
 from .errors import BrepError, InputError, ReconError
 from .fit import SurfaceFit, default_tolerance, fit_plane, fit_surface
 from .fit._select import SIGMAS_PER_TOLERANCE
-from .fit._surfaces import row_norms
+from ._array import row_norms, unit
 from .mesh import Mesh, clean_mesh, load_mesh
 from .mesh._topology import stable_argsort, unique_first
 
@@ -450,7 +450,7 @@ def _one_centre(fits) -> bool:
     lines = []
     for f in fits:
         if f.type == "cylinder":
-            p, d = np.asarray(f.params["axis_point"], float), _unit_vec(f.params["axis_dir"])
+            p, d = np.asarray(f.params["axis_point"], float), unit(f.params["axis_dir"])
         else:
             p, d = np.asarray(f.params["center"], float), None
         proj = np.eye(3) if d is None else np.eye(3) - np.outer(d, d)
@@ -460,11 +460,6 @@ def _one_centre(fits) -> bool:
     c = np.linalg.lstsq(A, b, rcond=None)[0]
     far = max(float(np.linalg.norm(proj @ (c - p))) for p, proj in lines)
     return far <= BAND_CENTRE_SHARE * float(np.median([float(f.params["radius"]) for f in fits]))
-
-
-def _unit_vec(v) -> np.ndarray:
-    v = np.asarray(v, dtype=np.float64)
-    return v / np.linalg.norm(v)
 
 
 def _misfits(fit: SurfaceFit, pts: np.ndarray) -> bool:

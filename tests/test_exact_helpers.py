@@ -12,7 +12,7 @@ import pytest
 from recon.decompose._synthetic import rounded_box
 from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
-from recon.fit._surfaces import col_means, col_sums, extent, row_norms, row_sums
+from recon._array import col_means, col_sums, extent, row_norms, row_sums
 from recon.fit._types import median, percentile
 from recon.mesh import clean_mesh
 from recon.mesh._clean import _extremes

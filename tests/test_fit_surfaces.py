@@ -35,7 +35,7 @@ from recon.fit import (
     ruled_surface,
 )
 from recon.fit._bspline import basis_functions
-from recon.fit._surfaces import perpendicular_frame
+from recon._array import perpendicular_frame
 from recon.fit._synthetic import (
     add_noise,
     random_rotation,

@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
-from ..fit._surfaces import row_norms, row_sums
+from .._array import row_norms, row_sums
 from ._quickfit import quick_fit, surface_normals
 from ..mesh._topology import stable_argsort
 from ._topology import unique

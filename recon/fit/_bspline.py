@@ -35,7 +35,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import FitError
 from ._noise import estimate_normals
-from ._surfaces import as_points
+from .._array import as_points
 from ._types import SurfaceFit, deviation_stats, within_tolerance
 
 __all__ = ["BSplineSurface", "basis_functions", "clamped_knots", "fit_bspline_surface"]
@@ -541,11 +541,11 @@ def fit_bspline_surface(
         ``type == "bspline"``; ``params`` as :meth:`BSplineSurface.to_params` (``periodic_u`` for a band around an
         axis). Falsy for a closed or otherwise wrapped patch that is not such a band (a torus).
     """
-    pts = as_points(points, min_count=16)
+    pts = as_points(points, min_count=16, error=FitError)
     if normals is None:
         nrm = estimate_normals(pts)
     else:
-        nrm = as_points(normals, "normals")
+        nrm = as_points(normals, "normals", error=FitError)
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
         nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)

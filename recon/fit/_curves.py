@@ -15,7 +15,7 @@ from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 from ..errors import FitError
-from ._surfaces import as_points, perpendicular_frame
+from .._array import as_points, perpendicular_frame
 from ._types import CurveFit, deviation_stats, within_tolerance
 
 __all__ = ["Line", "Circle", "BSplineCurve", "fit_line", "fit_circle", "fit_bspline_curve", "fit_curve", "curve_from_params"]
@@ -141,7 +141,7 @@ def fit_line(points, *, tolerance: float | None = None) -> CurveFit:
         ``params``: ``point`` (centroid), ``direction`` (from the first point towards the last),
         ``start``, ``end`` (first and last point projected on the line).
     """
-    pts = as_points(points, min_count=2)
+    pts = as_points(points, min_count=2, error=FitError)
     mean = pts.mean(axis=0)
     _, vec = np.linalg.eigh((pts - mean).T @ (pts - mean))
     d = vec[:, 2]
@@ -181,7 +181,7 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
         Falsy when degenerate: collinear points, or a sagitta (diagonal²/8r) below the tolerance (4σ of the
         residuals without one) — a line.
     """
-    pts = as_points(points, min_count=3)
+    pts = as_points(points, min_count=3, error=FitError)
     mean = pts.mean(axis=0)
     q = pts - mean
     evals, vec = np.linalg.eigh(q.T @ q)
@@ -258,7 +258,7 @@ def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree:
     CurveFit
         ``params``: ``degree``, ``knots``, ``control_points``, ``periodic``.
     """
-    pts = as_points(points, min_count=degree + 2)
+    pts = as_points(points, min_count=degree + 2, error=FitError)
     if not 1 <= degree <= 5:
         raise FitError(f"`degree` must be in 1..5, got {degree}")
     if not tolerance > 0:
@@ -301,7 +301,7 @@ def fit_curve(points, *, tolerance: float, closed: bool = False) -> CurveFit:
         The accepted fit; when nothing fits, the candidate with the smallest p99 deviation, falsy, with the
         reasons joined.
     """
-    pts = as_points(points, min_count=2)
+    pts = as_points(points, min_count=2, error=FitError)
     if not tolerance > 0:
         raise FitError(f"`tolerance` must be > 0, got {tolerance}")
     candidates = []

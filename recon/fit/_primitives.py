@@ -34,8 +34,8 @@ except ImportError:  # pragma: no cover - a scipy that moved its internals: the 
 from ..errors import FitError
 from ._noise import estimate_normals
 from ._trf import trf_soft_l1
-from ._surfaces import (Cone, Cylinder, Plane, Sphere, Torus, as_points, col_means, col_sums, cone_distance, columns as _columns,
-                        cross3, extent, perpendicular_frame, row_norms)
+from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
+from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
@@ -59,10 +59,10 @@ _MIN_ANGLE = np.deg2rad(0.5)
 
 
 def _prepare(points, normals, *, min_count: int, need_normals: bool):
-    pts = as_points(points, min_count=min_count)
+    pts = as_points(points, min_count=min_count, error=FitError)
     nrm = None
     if normals is not None:
-        nrm = as_points(normals, "normals")
+        nrm = as_points(normals, "normals", error=FitError)
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
         lengths = row_norms(nrm, keepdims=True)

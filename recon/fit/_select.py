@@ -10,7 +10,7 @@ from ..errors import FitError
 from ._bspline import fit_bspline_surface
 from ._noise import default_tolerance, estimate_normals
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
-from ._surfaces import as_points
+from .._array import as_points
 from ._types import SURFACE_TYPES, SurfaceFit
 
 __all__ = ["fit_surface", "ANALYTIC_FITTERS"]
@@ -108,7 +108,7 @@ def fit_surface(
         The accepted fit; or, when nothing fits, the candidate with the smallest p99 deviation, falsy, with
         every candidate's reason joined by "; ".
     """
-    pts = as_points(points, min_count=16)
+    pts = as_points(points, min_count=16, error=FitError)
     unknown = set(types) - set(ANALYTIC_FITTERS)
     if unknown:
         raise FitError(f"`types` must be among {tuple(ANALYTIC_FITTERS)}, got {sorted(unknown)}")
