@@ -34,7 +34,7 @@ from recon.fit import (
     noise_sigma,
     ruled_surface,
 )
-from recon.fit._bspline import basis_functions
+from recon.fit._bspline_surface import basis_functions
 from recon._array import perpendicular_frame
 from recon.fit._synthetic import (
     add_noise,

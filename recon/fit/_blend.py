@@ -8,7 +8,7 @@ import numpy as np
 from scipy.interpolate import make_lsq_spline
 
 from ..errors import FitError
-from ._bspline import BSplineSurface, clamped_knots
+from ._bspline_surface import BSplineSurface, clamped_knots
 from ._primitives import fit_cylinder, fit_plane, fit_torus
 from .._array import as_points
 from ._types import SurfaceFit, deviation_stats, within_tolerance

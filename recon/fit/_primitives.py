@@ -35,7 +35,7 @@ from ..errors import FitError
 from ._noise import estimate_normals
 from ._trf import trf_soft_l1
 from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
-from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
+from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
