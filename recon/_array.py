@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["as_points", "axis_helper", "col_means", "col_sums", "columns", "cross3", "extent", "perpendicular_frame",
-           "row_norms", "row_sums", "unit"]
+           "row_norms", "row_sums", "unique_inverse", "unit"]
 
 
 def as_points(points, name: str = "points", *, min_count: int = 1,
@@ -130,3 +130,16 @@ def unit(v) -> np.ndarray:
     """``v`` (3,) scaled to length 1 (as a float array)."""
     v = np.asarray(v, dtype=float)
     return v / np.linalg.norm(v)
+
+
+def unique_inverse(idx: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(idx, return_inverse=True)`` of indices into ``range(n)``, by a mask when ``idx`` is not small
+    beside ``n``: a large region's unique vertices without sorting its corners (1M triangles: a third of a refit)."""
+    if len(idx) * 32 < n:
+        return np.unique(idx, return_inverse=True)
+    mask = np.zeros(n, bool)
+    mask[idx] = True
+    verts = np.flatnonzero(mask)
+    lut = np.empty(n, np.int64)
+    lut[verts] = np.arange(len(verts))
+    return verts, lut[idx]

@@ -596,11 +596,11 @@ def test_fit_stage_takes_a_noise_free_part_s_normals_from_its_own_triangles():
     """At a can's rims the vertex normals average the side and the caps (45° off the side's normal): the
     cylinder's axis from them would lie across the true axis. The fit stage's part fit uses the side's own
     triangles' normals there and recovers the cylinder exactly."""
-    from recon.pipeline import _fit_triangles
+    from recon.segment._context import fit_triangles
 
     pts, faces, _, mixed = _coarse_can(n=32)
     assert not fit_cylinder(pts, mixed, tolerance=0.05)  # from the vertex normals no cylinder fits
-    fit = _fit_triangles(pts, faces, mixed, 0.05, 0)
+    fit = fit_triangles(pts, faces, mixed, 0.05, 0, noise=None)  # a noise-free mesh
     assert fit.ok and fit.type == "cylinder"
     assert fit.params["radius"] == pytest.approx(5.0, rel=1e-6)
     assert abs(fit.params["axis_dir"][2]) == pytest.approx(1.0, abs=1e-9)

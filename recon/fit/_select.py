@@ -13,7 +13,7 @@ from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_toru
 from .._array import as_points
 from ._types import SURFACE_TYPES, SurfaceFit
 
-__all__ = ["fit_surface", "ANALYTIC_FITTERS"]
+__all__ = ["fit_surface", "residual_scale", "ANALYTIC_FITTERS", "MISFIT_SCALE", "SIGMAS_PER_TOLERANCE"]
 
 log = logging.getLogger(__name__)
 
@@ -147,7 +147,7 @@ def fit_surface(
     return SurfaceFit(best.type, best.params, best.deviation, best.n_points, ok=False, reason=reason)
 
 
-def _residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
+def residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
     """Robust σ of the residuals: MAD-based, so a sliver of a neighbouring face among the points does not count."""
     return MAD_TO_SIGMA * float(np.median(np.abs(fit.distance(pts))))
 
@@ -169,14 +169,14 @@ def _later_fits(first: SurfaceFit, pts, normals, *, tolerance: float, types, mad
 def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: float, types) -> SurfaceFit:
     """The analytic type of least BIC among ``first`` (the simplest within tolerance) and the later ones.
 
-    Only when ``first`` misfits: its robust residual scale σ̂ (:func:`_residual_scale`) is above
+    Only when ``first`` misfits: its robust residual scale σ̂ (:func:`residual_scale`) is above
     :data:`MISFIT_SCALE` × the noise ``sigma``; otherwise it is returned without fitting the others. BIC
     (Schwarz 1978) for Gaussian residuals of scale σ̂ with k parameters: n ln σ̂² + k ln n, σ̂ floored at the
     noise (a smaller residual is no evidence).
     """
     floor = float(sigma)
     n = len(pts)
-    scale = _residual_scale(first, pts)
+    scale = residual_scale(first, pts)
     if scale <= MISFIT_SCALE * floor:
         return first
 
@@ -185,12 +185,12 @@ def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: 
 
     best, best_bic = first, bic(first, scale)
     for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
-        b = bic(fit, _residual_scale(fit, pts))
+        b = bic(fit, residual_scale(fit, pts))
         if b < best_bic:
             best, best_bic = fit, b
     if best is not first:
         log.debug("fit_surface: %s (σ̂ %.3g) explains the points better than %s (σ̂ %.3g)", best.type,
-                  _residual_scale(best, pts), first.type, scale)
+                  residual_scale(best, pts), first.type, scale)
     return best
 
 
