@@ -133,16 +133,11 @@ BAND_RMS = 4.0
 MAX_FOLDED_SHARE = 0.005
 #: Points per control point the control grid may grow to: noise needs about 4 to average out; points that lie
 #: exactly on the surface (a CAD tessellation) pin a control point each with fewer, the smoothing holding the
-#: grid between them. The coarse lofted fixture's side (117 vertices of a three-section loft): at 4, its
-#: periodic B-spline missed by RMS 7.2× the tolerance (and a torus 60× out took the face); at 2, 2.0× (a
-#: B-spline face, ours→true p95 136 → 0.19 % of the diagonal); at 1, 0.4× (0.08 %).
+#: grid between them (the measurements: bench/segment.md).
 POINTS_PER_CONTROL = 4.0
 EXACT_POINTS_PER_CONTROL = 2.0
 #: ... for patches of fewer points than this: from there on 4 per control point already allow a grid of 250
-#: controls, and a finer one only bends the surface where it leaves the data. joint's band (thousands of points)
-#: at 2 per control point moved its edge with the plane beside it: 2 vertices 1.24 % of the diagonal from the
-#: B-rep (0.11 % at 4). With this limit joint is back at 0.11 %, and the ABC model (ours→true p95 0.287 → 0.014 %)
-#: and the coarse lofted part keep what the finer grid gave them.
+#: controls, and a finer one only bends the surface where it leaves the data (bench/segment.md).
 EXACT_MAX_POINTS = 1000
 
 

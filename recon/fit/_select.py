@@ -34,8 +34,7 @@ SIGMAS_PER_TOLERANCE = 4.0
 MAD_TO_SIGMA = 1.4826
 #: A type within tolerance misfits its points when its residual scale is above √2 × the noise: a systematic
 #: deviation as large as the noise itself (σ̂² = σ² + b², b ≥ σ). Below it the residual is the noise plus what
-#: a sliver of a neighbouring face adds (box_fillet noisy20: a plane with fillet slivers at 1.07σ, which a
-#: cylinder of radius 700 took to 1.01σ).
+#: a sliver of a neighbouring face adds (the measurements: bench/segment.md).
 MISFIT_SCALE = float(np.sqrt(2.0))
 #: On a noise-free mesh a later type replaces the first one within tolerance when its chords (the triangles'
 #: edges) lie at most this share as far from it (RMS at their midpoints), see :func:`_hugging_chords`.

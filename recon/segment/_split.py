@@ -42,9 +42,8 @@ def grown_inside(tris: np.ndarray, ctx: SegmentContext, *, min_share: float, max
     total = float(mesh.face_areas[tris].sum())
     if len(ctx.vertices(tris)) < 2 * MIN_PART_VERTICES:
         return total, []
-    # The fit stage asks again for every face each round (trim, grow, trim ...), and most faces have not
-    # changed: the regions depend on nothing but the triangles and these arguments (rocker-arm2500: 29 of
-    # the fit stage's 57 s went to asking again).
+    # The stage asks again for every face each round (trim, grow, trim ...), and most faces have not changed:
+    # the regions depend on nothing but the triangles and these arguments (the cost saved: bench/segment.md).
     key = ("grown inside", float(tolerance), float(min_share), max_seeds, tuple(types),
            hashlib.sha1(np.asarray(tris, dtype=np.int64).tobytes()).digest())
     if key in memo:
