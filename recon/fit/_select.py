@@ -99,7 +99,7 @@ def fit_surface(
         The points' noise σ (the tolerance is best its 4σ, as the default is); see above.
     bspline_normals : (n, 3) float, optional
         Normals for the B-spline fallback instead of ``normals`` (the fit stage gives the analytic fitters a
-        noise-free part's own normals, the B-spline the mesh's: see :func:`recon.pipeline._own_normals`).
+        noise-free part's own normals, the B-spline the mesh's: see :func:`recon.segment._context.own_normals`).
 
     Returns
     -------
