@@ -11,6 +11,7 @@ from typing import Callable, Union
 import numpy as np
 
 from ..decompose import Decomposition
+from ..mesh import Mesh
 from ._context import SegmentContext, fit_parts
 from ._grow import dissolve_explained, dissolve_misfits, grow_faces
 from ._merge import merge_round_bands, merge_same_surface
@@ -76,7 +77,7 @@ def describe(passes: tuple[Step, ...] = PASSES) -> str:
     return "\n".join(lines)
 
 
-def segment(mesh, dec: Decomposition, *, tolerance: float) -> tuple[np.ndarray, dict]:
+def segment(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> tuple[np.ndarray, dict]:
     """The face label of every triangle and the surface of every face (the fit stage of :func:`recon.convert`).
 
     Parameters
