@@ -29,7 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError
-from .fit._surfaces import row_norms
+from ._array import row_norms
 from .mesh._topology import stable_argsort
 
 __all__ = ["FeatureField", "feature_field", "mesh_arrays", "heat_smooth"]

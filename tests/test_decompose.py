@@ -214,7 +214,7 @@ def test_split_by_fitting_finds_the_four_fillets_of_a_pocket_ring():
     the true surfaces, so the fit is exact to round-off: 1e-6 of a 3 mm radius is generous)."""
     from recon.decompose._regions import split_by_fitting
     from recon.fixtures import load_fixture
-    from recon.pipeline import _vertex_normals
+    from recon.segment import vertex_normals
 
     fx = load_fixture("pocket", "clean")
     V, F = fx.vertices, fx.faces
@@ -222,7 +222,7 @@ def test_split_by_fitting_finds_the_four_fillets_of_a_pocket_ring():
     ring = np.flatnonzero(np.isin(fx.labels, cylinders))
     cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
     area = 0.5 * np.linalg.norm(cr, axis=1)
-    vn = _vertex_normals(V, F, cr / (2 * area[:, None]), area)
+    vn = vertex_normals(V, F, cr / (2 * area[:, None]), area)
     found = split_by_fitting(V, F, ring, vnormal=vn, tolerance=TOL_FLOOR * float(np.linalg.norm(np.ptp(V, axis=0))), min_area=0.05 * area[ring].sum())
     assert len(found) == 4
     got = sorted(sorted(np.unique(fx.labels[r]).tolist()) for r, _ in found)

@@ -12,7 +12,7 @@ import pytest
 from recon.decompose._synthetic import rounded_box
 from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
-from recon.fit._surfaces import col_means, col_sums, extent, row_norms, row_sums
+from recon._array import col_means, col_sums, extent, row_norms, row_sums
 from recon.fit._types import median, percentile
 from recon.mesh import clean_mesh
 from recon.mesh._clean import _extremes
@@ -131,15 +131,15 @@ def test_mesh_face_arrays_are_numpys_and_shared_with_face_geometry():
 
 def test_fit_stage_groupings_are_what_they_replace():
     from recon.fit._select import _chord_midpoints
-    from recon.pipeline import _vertex_counts, _vertex_sets, _vertices_of
+    from recon.segment._labels import vertex_counts, vertex_sets, vertices_of
 
     V, F = _mesh()
     labels = np.random.default_rng(2).integers(0, 7, len(F))
-    ids = _vertex_sets(F, labels, len(V))
+    ids = vertex_sets(F, labels, len(V))
     for q in range(7):
-        assert _same(ids(q), _vertices_of(F, labels == q, len(V)))
+        assert _same(ids(q), vertices_of(F, labels == q, len(V)))
     pairs = np.unique(np.column_stack([np.repeat(labels, 3), F.ravel()]), axis=0)
-    assert np.array_equal(_vertex_counts(F, labels), np.bincount(pairs[:, 0], minlength=7))
+    assert np.array_equal(vertex_counts(F, labels), np.bincount(pairs[:, 0], minlength=7))
     f = F[:500]
     edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     key = np.unique(edges[:, 0] * len(V) + edges[:, 1])

@@ -34,8 +34,8 @@ from recon.fit import (
     noise_sigma,
     ruled_surface,
 )
-from recon.fit._bspline import basis_functions
-from recon.fit._surfaces import perpendicular_frame
+from recon.fit._bspline_surface import basis_functions
+from recon._array import perpendicular_frame
 from recon.fit._synthetic import (
     add_noise,
     random_rotation,
@@ -188,7 +188,7 @@ def test_direct_trust_region_loop_is_least_squares_bit_for_bit(fitter, sampler, 
     rng = np.random.default_rng(11)
     _, pts, nrm, _, _ = _posed(sampler, rng, n=n, **kw)
     fast = fitter(pts, nrm, tolerance=TOL)
-    monkeypatch.setattr(prim, "_trf_no_bounds", None)
+    monkeypatch.setattr(prim, "DIRECT_LOOP", False)
     slow = fitter(pts, nrm, tolerance=TOL)
     assert fast.type == slow.type and bool(fast) == bool(slow)
     assert fast.params == slow.params  # plain floats: equal means bit-identical
@@ -596,11 +596,24 @@ def test_fit_stage_takes_a_noise_free_part_s_normals_from_its_own_triangles():
     """At a can's rims the vertex normals average the side and the caps (45° off the side's normal): the
     cylinder's axis from them would lie across the true axis. The fit stage's part fit uses the side's own
     triangles' normals there and recovers the cylinder exactly."""
-    from recon.pipeline import _fit_triangles
+    from recon.segment._context import fit_triangles
 
     pts, faces, _, mixed = _coarse_can(n=32)
     assert not fit_cylinder(pts, mixed, tolerance=0.05)  # from the vertex normals no cylinder fits
-    fit = _fit_triangles(pts, faces, mixed, 0.05, 0)
+    fit = fit_triangles(pts, faces, mixed, 0.05, 0, noise=None)  # a noise-free mesh
     assert fit.ok and fit.type == "cylinder"
     assert fit.params["radius"] == pytest.approx(5.0, rel=1e-6)
     assert abs(fit.params["axis_dir"][2]) == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(2000, 7), (400, 5), (120, 4), (6, 3)])
+def test_the_trust_region_loop_s_svd_is_scipy_s_bit_for_bit(shape):
+    """The port's SVD (LAPACK gesdd with the workspace scipy.linalg.svd asks for, from the public workspace query)
+    against ``scipy.linalg.svd`` itself: the same factors, bit for bit."""
+    import scipy.linalg
+
+    from recon.fit._trf import _svd
+
+    a = np.random.default_rng(5).standard_normal(shape)
+    for got, want in zip(_svd(a), scipy.linalg.svd(a, full_matrices=False)):
+        assert np.array_equal(got, want)

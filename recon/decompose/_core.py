@@ -31,7 +31,7 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from ..errors import DecompositionError, InputError
-from ..fit._surfaces import row_norms
+from .._array import row_norms
 from ..features import FaceGeometry, FeatureField, _feature_field, mesh_arrays
 from ..segment_graph import cut_components
 from ._curves import boundary_curves

@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
-from ..fit._surfaces import axis_helper, col_means, columns as _columns, cross3, extent, row_norms, row_sums
+from .._array import axis_helper, col_means, columns as _columns, cross3, extent, row_norms, row_sums
 from ..fit._types import deviation_stats, percentile as _percentile, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]

@@ -39,7 +39,7 @@ from .._tolerance import MESH_FLOOR, SIGMAS_PER_TOLERANCE, tolerance_for
 from ..errors import FitError
 from ..fit import SurfaceFit
 from ..fit._select import ANALYTIC_FITTERS
-from ..fit._surfaces import row_norms, row_sums
+from .._array import row_norms, row_sums, unique_inverse
 from ._quickfit import quick_fit, surface_normals
 from ..mesh._topology import stable_argsort
 from ._topology import unique
@@ -144,7 +144,7 @@ class _FitInput:
     def __init__(self, ctx: _Ctx, faces: np.ndarray):
         self.faces = faces
         self.corners = ctx.F[faces].ravel()
-        self.verts, self.inv = _unique_inverse(self.corners, len(ctx.V))
+        self.verts, self.inv = unique_inverse(self.corners, len(ctx.V))
         self.enough = len(self.verts) >= MIN_REGION_VERTICES
         self._nrm = None
         self._step = -(-len(self.verts) // MAX_FIT_POINTS) if len(self.verts) > MAX_FIT_POINTS else 1
@@ -155,19 +155,6 @@ class _FitInput:
             self._nrm = _region_normals(ctx, self.faces, self.inv, len(self.verts), self._step, self.corners,
                                         self.verts[:: self._step])
         return self._nrm
-
-
-def _unique_inverse(idx: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """``np.unique(idx, return_inverse=True)`` of indices into ``range(n)``, by a mask when ``idx`` is not small
-    beside ``n``: a large region's unique vertices without sorting its corners (1M triangles: a third of a refit)."""
-    if len(idx) * 32 < n:
-        return np.unique(idx, return_inverse=True)
-    mask = np.zeros(n, bool)
-    mask[idx] = True
-    verts = np.flatnonzero(mask)
-    lut = np.empty(n, np.int64)
-    lut[verts] = np.arange(len(verts))
-    return verts, lut[idx]
 
 
 def _fit_input(
@@ -1210,7 +1197,7 @@ def split_by_fitting(V, F, faces, *, vnormal, tolerance: float, min_area: float,
     from ._topology import topology
 
     faces = np.asarray(faces, dtype=np.int64)
-    ids, local = _unique_inverse(F[faces].ravel(), len(V))  # np.unique(F[faces], return_inverse=True)
+    ids, local = unique_inverse(F[faces].ravel(), len(V))  # np.unique(F[faces], return_inverse=True)
     v, f = V[ids], local.reshape(-1, 3)
     topo = topology(f, len(v))
     adj = np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(-1, 3)

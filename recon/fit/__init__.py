@@ -1,12 +1,12 @@
 """Surface and curve fitting (numpy/scipy only; ``recon.brep`` turns the parameters into OpenCascade objects)."""
 
-from ._curves import BSplineCurve, Circle, Line, fit_bspline_curve, fit_circle, fit_curve, fit_line
+from ._curves import fit_bspline_curve, fit_circle, fit_curve, fit_line
 from ._noise import default_tolerance, estimate_normals, noise_sigma
 from ._blend import fit_rolling_ball, ruled_surface
-from ._bspline import BSplineSurface, fit_bspline_surface
+from ._bspline import fit_bspline_surface
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ._select import fit_surface
-from ._surfaces import Cone, Cylinder, Plane, Sphere, Torus
+from ._geometry import BSplineCurve, BSplineSurface, Circle, Cone, Cylinder, Line, Plane, Sphere, Torus
 from ._types import CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats, within_tolerance
 
 __all__ = [

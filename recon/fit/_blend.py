@@ -8,9 +8,9 @@ import numpy as np
 from scipy.interpolate import make_lsq_spline
 
 from ..errors import FitError
-from ._bspline import BSplineSurface, clamped_knots
+from ._bspline_surface import BSplineSurface, clamped_knots
 from ._primitives import fit_cylinder, fit_plane, fit_torus
-from ._surfaces import as_points
+from .._array import as_points
 from ._types import SurfaceFit, deviation_stats, within_tolerance
 
 __all__ = ["fit_rolling_ball", "ruled_surface"]
@@ -44,8 +44,8 @@ def ruled_surface(left_polyline, right_polyline, *, degree: int = 3, spans: int 
         ``type == "bspline"`` with ``degree_v == 1``; u runs along, v ∈ [0, 1] across (v = 0 on the left).
         The deviation is that of the polyline points.
     """
-    left = as_points(left_polyline, "left_polyline", min_count=2)
-    right = as_points(right_polyline, "right_polyline", min_count=2)
+    left = as_points(left_polyline, "left_polyline", min_count=2, error=FitError)
+    right = as_points(right_polyline, "right_polyline", min_count=2, error=FitError)
     if np.linalg.norm(left[0] - right[-1]) + np.linalg.norm(left[-1] - right[0]) < np.linalg.norm(
         left[0] - right[0]
     ) + np.linalg.norm(left[-1] - right[-1]):
@@ -121,7 +121,7 @@ def fit_rolling_ball(
         plane (chamfer), cylinder / torus (with ``ball_radius``) or a ruled B-spline; falsy with the reason if neither meets
         the tolerance (the ruled surface's params are still there to use).
     """
-    pts = as_points(points, min_count=8)
+    pts = as_points(points, min_count=8, error=FitError)
     if not tolerance > 0:
         raise FitError(f"`tolerance` must be > 0, got {tolerance}")
     chamfer = fit_plane(pts, tolerance=tolerance)

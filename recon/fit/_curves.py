@@ -7,116 +7,19 @@ curve: to the infinite line, to the full circle, and to the B-spline over its do
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import BSpline, splprep
+from scipy.interpolate import splprep
 from scipy.optimize import least_squares
-from scipy.spatial import cKDTree
 
+from .._array import as_points, perpendicular_frame
 from ..errors import FitError
-from ._surfaces import as_points, perpendicular_frame
+from ._geometry import BSplineCurve, Circle, Line
 from ._types import CurveFit, deviation_stats, within_tolerance
 
-__all__ = ["Line", "Circle", "BSplineCurve", "fit_line", "fit_circle", "fit_bspline_curve", "fit_curve", "curve_from_params"]
+__all__ = ["fit_line", "fit_circle", "fit_bspline_curve", "fit_curve"]
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class Line:
-    """Line through ``point`` along unit ``direction``; ``start``/``end`` are the data's ends on it."""
-
-    point: np.ndarray
-    direction: np.ndarray
-
-    def evaluate(self, t) -> np.ndarray:
-        """Points (m, 3) at signed arc lengths ``t`` (m,) from ``point``."""
-        return self.point + np.atleast_1d(np.asarray(t, float))[:, None] * self.direction
-
-    def distance(self, points) -> np.ndarray:
-        """Distance (m,) to the infinite line."""
-        w = np.asarray(points, dtype=float) - self.point
-        return np.linalg.norm(w - np.outer(w @ self.direction, self.direction), axis=1)
-
-
-@dataclass(frozen=True)
-class Circle:
-    """Circle about ``center`` in the plane of unit ``normal``; angle 0 along ``x_dir``."""
-
-    center: np.ndarray
-    normal: np.ndarray
-    radius: float
-    x_dir: np.ndarray
-
-    def evaluate(self, angle) -> np.ndarray:
-        """Points (m, 3) at ``angle`` (m,) radians, counter-clockwise about ``normal``."""
-        a = np.atleast_1d(np.asarray(angle, float))[:, None]
-        y_dir = np.cross(self.normal, self.x_dir)
-        return self.center + self.radius * (np.cos(a) * self.x_dir + np.sin(a) * y_dir)
-
-    def distance(self, points) -> np.ndarray:
-        """Distance (m,) to the full circle."""
-        w = np.asarray(points, dtype=float) - self.center
-        h = w @ self.normal
-        rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
-        return np.hypot(rho - self.radius, h)
-
-
-@dataclass(frozen=True)
-class BSplineCurve:
-    """Non-rational B-spline curve: ``degree``, full ``knots`` (k,), ``control_points`` (c, 3)."""
-
-    degree: int
-    knots: np.ndarray
-    control_points: np.ndarray
-
-    @property
-    def domain(self) -> tuple[float, float]:
-        return float(self.knots[self.degree]), float(self.knots[-self.degree - 1])
-
-    @property
-    def _spline(self) -> BSpline:
-        return BSpline(self.knots, self.control_points, self.degree, extrapolate=False)
-
-    def evaluate(self, t) -> np.ndarray:
-        """Points (m, 3) at parameters ``t`` (m,), clamped to the domain."""
-        t0, t1 = self.domain
-        return self._spline(np.clip(np.atleast_1d(np.asarray(t, float)), t0, t1))
-
-    def closest_parameters(self, points, *, samples: int = 2000, iterations: int = 6) -> np.ndarray:
-        """Parameter (m,) of the closest curve point: nearest of dense samples, then Newton steps."""
-        pts = np.asarray(points, dtype=float)
-        t0, t1 = self.domain
-        grid = np.linspace(t0, t1, samples)
-        spline = self._spline
-        _, idx = cKDTree(spline(grid)).query(pts)
-        t = grid[idx]
-        d1, d2 = spline.derivative(1), spline.derivative(2)
-        for _ in range(iterations):
-            r = spline(t) - pts
-            c1, c2 = d1(t), d2(t)
-            g = np.einsum("ij,ij->i", r, c1)
-            h = np.einsum("ij,ij->i", c1, c1) + np.einsum("ij,ij->i", r, c2)
-            t = np.clip(t - g / np.where(h > 1e-300, h, 1e-300), t0, t1)
-        return t
-
-    def distance(self, points) -> np.ndarray:
-        """Distance (m,) to the curve over its domain."""
-        pts = np.asarray(points, dtype=float)
-        return np.linalg.norm(self._spline(self.closest_parameters(pts)) - pts, axis=1)
-
-
-def curve_from_params(kind: str, params: dict):
-    """Build the geometric curve of a :class:`~recon.fit.CurveFit` from its plain ``params``."""
-    a = {k: (np.asarray(v, float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
-    if kind == "line":
-        return Line(a["point"], a["direction"] / np.linalg.norm(a["direction"]))
-    if kind == "circle":
-        return Circle(a["center"], a["normal"], float(a["radius"]), a["x_dir"])
-    if kind == "bspline":
-        return BSplineCurve(int(a["degree"]), a["knots"], a["control_points"])
-    raise FitError(f"unknown curve type {kind!r}")
 
 
 def _finish(kind, params, curve, pts, tolerance, reason=""):
@@ -141,7 +44,7 @@ def fit_line(points, *, tolerance: float | None = None) -> CurveFit:
         ``params``: ``point`` (centroid), ``direction`` (from the first point towards the last),
         ``start``, ``end`` (first and last point projected on the line).
     """
-    pts = as_points(points, min_count=2)
+    pts = as_points(points, min_count=2, error=FitError)
     mean = pts.mean(axis=0)
     _, vec = np.linalg.eigh((pts - mean).T @ (pts - mean))
     d = vec[:, 2]
@@ -181,7 +84,7 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
         Falsy when degenerate: collinear points, or a sagitta (diagonal²/8r) below the tolerance (4σ of the
         residuals without one) — a line.
     """
-    pts = as_points(points, min_count=3)
+    pts = as_points(points, min_count=3, error=FitError)
     mean = pts.mean(axis=0)
     q = pts - mean
     evals, vec = np.linalg.eigh(q.T @ q)
@@ -258,7 +161,7 @@ def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree:
     CurveFit
         ``params``: ``degree``, ``knots``, ``control_points``, ``periodic``.
     """
-    pts = as_points(points, min_count=degree + 2)
+    pts = as_points(points, min_count=degree + 2, error=FitError)
     if not 1 <= degree <= 5:
         raise FitError(f"`degree` must be in 1..5, got {degree}")
     if not tolerance > 0:
@@ -301,7 +204,7 @@ def fit_curve(points, *, tolerance: float, closed: bool = False) -> CurveFit:
         The accepted fit; when nothing fits, the candidate with the smallest p99 deviation, falsy, with the
         reasons joined.
     """
-    pts = as_points(points, min_count=2)
+    pts = as_points(points, min_count=2, error=FitError)
     if not tolerance > 0:
         raise FitError(f"`tolerance` must be > 0, got {tolerance}")
     candidates = []

@@ -9,7 +9,7 @@ from scipy.spatial import cKDTree
 
 from .._tolerance import tolerance_for
 from ..errors import FitError
-from ._surfaces import as_points
+from .._array import as_points
 
 __all__ = ["estimate_normals", "noise_sigma", "default_tolerance"]
 
@@ -37,7 +37,7 @@ def estimate_normals(points, *, k: int = 12) -> np.ndarray:
         The direction of least variance of each neighbourhood. The sign is arbitrary: the fitters only use
         normals through sign-invariant relations (n nᵀ, normal *lines*, tangent planes).
     """
-    pts = as_points(points, min_count=3)
+    pts = as_points(points, min_count=3, error=FitError)
     nb = _neighbourhoods(pts, k)
     cov = np.einsum("nki,nkj->nij", nb, nb)
     _, vec = np.linalg.eigh(cov)
@@ -66,7 +66,7 @@ def noise_sigma(points, normals=None, *, k: int = 20) -> float:
     float
         σ in the units of ``points``.
     """
-    pts = as_points(points, min_count=10)
+    pts = as_points(points, min_count=10, error=FitError)
     if k < 10:
         raise FitError(f"`k` must be ≥ 10 for a quadric fit, got {k}")
     nb = _neighbourhoods(pts, k)
@@ -75,7 +75,7 @@ def noise_sigma(points, normals=None, *, k: int = 20) -> float:
         _, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", nb, nb))
         frame = vec[:, :, [2, 1, 0]]  # columns: two tangent directions, then the normal (least variance)
     else:
-        nrm = as_points(normals, "normals")
+        nrm = as_points(normals, "normals", error=FitError)
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
         nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
@@ -114,7 +114,7 @@ def default_tolerance(points, normals=None, *, sigma: float | None = None) -> fl
     sigma : float, optional
         A known noise level; estimated by :func:`noise_sigma` when omitted.
     """
-    pts = as_points(points, min_count=10)
+    pts = as_points(points, min_count=10, error=FitError)
     if sigma is None:
         sigma = noise_sigma(pts, normals)
     diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))

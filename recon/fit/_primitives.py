@@ -26,16 +26,11 @@ import logging
 import numpy as np
 from scipy.optimize import least_squares
 
-try:  # the solver behind least_squares(method="trf") without bounds, called without its wrappers (see _solve)
-    from scipy.optimize._lsq.trf import trf_no_bounds as _trf_no_bounds
-except ImportError:  # pragma: no cover - a scipy that moved its internals: the public function does the same
-    _trf_no_bounds = None
-
 from ..errors import FitError
 from ._noise import estimate_normals
 from ._trf import trf_soft_l1
-from ._surfaces import (Cone, Cylinder, Plane, Sphere, Torus, as_points, col_means, col_sums, cone_distance, columns as _columns,
-                        cross3, extent, perpendicular_frame, row_norms)
+from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
+from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
@@ -51,6 +46,9 @@ COARSE_POINTS = 400
 #: Evaluation budget per refinement pass: from its closed-form start the right type converged in ≤ 14
 #: evaluations on 500 bench patches (σ = 0.02, normals given or estimated); wrong types wander and are cut short.
 _MAX_NFEV = 30
+#: Run the fits' trust-region loop as recon.fit._trf's port of scipy's rather than through the public ``least_squares``:
+#: the same fits bit for bit, and the public one's wrappers cost the fit stage 1.2–1.5× the CPU (bench/segment.md).
+DIRECT_LOOP = True
 #: Half-angles within this of 0 (or π/2) make a cone a cylinder (or a plane).
 _MIN_ANGLE = np.deg2rad(0.5)
 
@@ -59,10 +57,10 @@ _MIN_ANGLE = np.deg2rad(0.5)
 
 
 def _prepare(points, normals, *, min_count: int, need_normals: bool):
-    pts = as_points(points, min_count=min_count)
+    pts = as_points(points, min_count=min_count, error=FitError)
     nrm = None
     if normals is not None:
-        nrm = as_points(normals, "normals")
+        nrm = as_points(normals, "normals", error=FitError)
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
         lengths = row_norms(nrm, keepdims=True)
@@ -115,7 +113,7 @@ def _solve(fun, jac, x0, q, f_scale, f0=None):
     same inputs (scipy 1.17's ``least_squares``, default ``ftol = xtol = gtol = 1e-8``, ``tr_solver="exact"``).
     ``f0``: ``fun(x0, q)`` when the caller has it (the loop scales it in place: it is not the caller's after this).
     """
-    if _trf_no_bounds is None or not callable(jac):
+    if not DIRECT_LOOP or not callable(jac):
         return least_squares(fun, x0, args=(q,), jac=jac, loss="soft_l1", f_scale=f_scale, x_scale="jac",
                              max_nfev=_MAX_NFEV)
     x0 = np.atleast_1d(x0).astype(float)

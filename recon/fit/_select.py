@@ -10,10 +10,10 @@ from ..errors import FitError
 from ._bspline import fit_bspline_surface
 from ._noise import default_tolerance, estimate_normals
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
-from ._surfaces import as_points
+from .._array import as_points
 from ._types import SURFACE_TYPES, SurfaceFit
 
-__all__ = ["fit_surface", "ANALYTIC_FITTERS"]
+__all__ = ["fit_surface", "residual_scale", "ANALYTIC_FITTERS", "MISFIT_SCALE", "SIGMAS_PER_TOLERANCE"]
 
 log = logging.getLogger(__name__)
 
@@ -31,8 +31,7 @@ N_PARAMS = {"plane": 3, "sphere": 4, "cylinder": 5, "cone": 6, "torus": 7}
 MAD_TO_SIGMA = 1.4826
 #: A type within tolerance misfits its points when its residual scale is above √2 × the noise: a systematic
 #: deviation as large as the noise itself (σ̂² = σ² + b², b ≥ σ). Below it the residual is the noise plus what
-#: a sliver of a neighbouring face adds (box_fillet noisy20: a plane with fillet slivers at 1.07σ, which a
-#: cylinder of radius 700 took to 1.01σ).
+#: a sliver of a neighbouring face adds (the measurements: bench/segment.md).
 MISFIT_SCALE = float(np.sqrt(2.0))
 #: On a noise-free mesh a later type replaces the first one within tolerance when its chords (the triangles'
 #: edges) lie at most this share as far from it (RMS at their midpoints), see :func:`_hugging_chords`.
@@ -97,7 +96,7 @@ def fit_surface(
         The points' noise σ (the tolerance is best its 4σ, as the default is); see above.
     bspline_normals : (n, 3) float, optional
         Normals for the B-spline fallback instead of ``normals`` (the fit stage gives the analytic fitters a
-        noise-free part's own normals, the B-spline the mesh's: see :func:`recon.pipeline._own_normals`).
+        noise-free part's own normals, the B-spline the mesh's: see :func:`recon.segment._context.own_normals`).
 
     Returns
     -------
@@ -105,7 +104,7 @@ def fit_surface(
         The accepted fit; or, when nothing fits, the candidate with the smallest p99 deviation, falsy, with
         every candidate's reason joined by "; ".
     """
-    pts = as_points(points, min_count=16)
+    pts = as_points(points, min_count=16, error=FitError)
     unknown = set(types) - set(ANALYTIC_FITTERS)
     if unknown:
         raise FitError(f"`types` must be among {tuple(ANALYTIC_FITTERS)}, got {sorted(unknown)}")
@@ -144,7 +143,7 @@ def fit_surface(
     return SurfaceFit(best.type, best.params, best.deviation, best.n_points, ok=False, reason=reason)
 
 
-def _residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
+def residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
     """Robust σ of the residuals: MAD-based, so a sliver of a neighbouring face among the points does not count."""
     return MAD_TO_SIGMA * float(np.median(np.abs(fit.distance(pts))))
 
@@ -166,14 +165,14 @@ def _later_fits(first: SurfaceFit, pts, normals, *, tolerance: float, types, mad
 def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: float, types) -> SurfaceFit:
     """The analytic type of least BIC among ``first`` (the simplest within tolerance) and the later ones.
 
-    Only when ``first`` misfits: its robust residual scale σ̂ (:func:`_residual_scale`) is above
+    Only when ``first`` misfits: its robust residual scale σ̂ (:func:`residual_scale`) is above
     :data:`MISFIT_SCALE` × the noise ``sigma``; otherwise it is returned without fitting the others. BIC
     (Schwarz 1978) for Gaussian residuals of scale σ̂ with k parameters: n ln σ̂² + k ln n, σ̂ floored at the
     noise (a smaller residual is no evidence).
     """
     floor = float(sigma)
     n = len(pts)
-    scale = _residual_scale(first, pts)
+    scale = residual_scale(first, pts)
     if scale <= MISFIT_SCALE * floor:
         return first
 
@@ -182,12 +181,12 @@ def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: 
 
     best, best_bic = first, bic(first, scale)
     for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
-        b = bic(fit, _residual_scale(fit, pts))
+        b = bic(fit, residual_scale(fit, pts))
         if b < best_bic:
             best, best_bic = fit, b
     if best is not first:
         log.debug("fit_surface: %s (σ̂ %.3g) explains the points better than %s (σ̂ %.3g)", best.type,
-                  _residual_scale(best, pts), first.type, scale)
+                  residual_scale(best, pts), first.type, scale)
     return best
 
 

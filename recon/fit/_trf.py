@@ -15,12 +15,7 @@ The differential test ``test_direct_trust_region_loop_is_least_squares_bit_for_b
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import get_lapack_funcs, svd as _scipy_svd
-
-try:  # scipy's workspace query (private); without it the SVD goes through scipy.linalg.svd, the same result
-    from scipy.linalg.lapack import _compute_lwork
-except ImportError:  # pragma: no cover
-    _compute_lwork = None
+from scipy.linalg import get_lapack_funcs
 
 _EPS = np.finfo(float).eps
 _sqrt = np.sqrt
@@ -39,14 +34,21 @@ class TrfResult:
         self.x, self.fun, self.cost, self.nfev, self.njev, self.status = x, fun, cost, nfev, njev, status
 
 
+def _workspace(m: int, n: int) -> int:
+    """LAPACK's optimal workspace for gesdd of an m × n matrix, as ``scipy.linalg.svd`` asks for it (its
+    ``_compute_lwork``: the query's float64 answer truncated to an integer), from the public ``gesdd_lwork``."""
+    work, info = _gesdd_lwork(m, n, compute_uv=True, full_matrices=False)
+    if info != 0:
+        raise ValueError(f"Internal work array size computation failed: {info}")
+    return int(work.real)
+
+
 def _svd(a):
     """``scipy.linalg.svd(a, full_matrices=False)`` (gesdd) for a C-contiguous float64 matrix."""
-    if _compute_lwork is None:  # pragma: no cover
-        return _scipy_svd(a, full_matrices=False)
     m, n = a.shape
     lwork = _LWORK.get((m, n))
     if lwork is None:
-        lwork = _LWORK[(m, n)] = _compute_lwork(_gesdd_lwork, m, n, compute_uv=True, full_matrices=False)
+        lwork = _LWORK[(m, n)] = _workspace(m, n)
     if not _isfinite(a).all():  # scipy.linalg.svd's check_finite
         raise ValueError("array must not contain infs or NaNs")
     u, s, v, info = _gesdd(a, compute_uv=True, lwork=lwork, full_matrices=False, overwrite_a=False)

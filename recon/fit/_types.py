@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ._geometry import curve_from_params, surface_from_params
+
 __all__ = ["SurfaceFit", "CurveFit", "SURFACE_TYPES", "CURVE_TYPES", "deviation_stats", "within_tolerance"]
 
 #: Surface types in the order :func:`recon.fit.fit_surface` tries them (simplest first, see there).
@@ -151,8 +153,6 @@ class SurfaceFit(_Fit):
     @cached_property
     def surface(self):
         """The geometric surface (``Plane``, ``Sphere``, ...), rebuilt from ``params``; None if there are none."""
-        from ._surfaces import surface_from_params
-
         return surface_from_params(self.type, self.params) if self.params else None
 
     def distance(self, points: np.ndarray) -> np.ndarray:
@@ -190,8 +190,6 @@ class CurveFit(_Fit):
     @cached_property
     def curve(self):
         """The geometric curve (``Line``, ``Circle``, ``BSplineCurve``) rebuilt from ``params``."""
-        from ._curves import curve_from_params
-
         return curve_from_params(self.type, self.params) if self.params else None
 
     def distance(self, points: np.ndarray) -> np.ndarray:

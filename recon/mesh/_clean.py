@@ -13,7 +13,7 @@ from scipy.sparse.csgraph import breadth_first_order, connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InputError, MeshError
-from ..fit._surfaces import col_means, row_norms
+from .._array import col_means, row_norms
 from ._topology import halfedge_order, unique_edges, unique_rows
 from ._types import CleanReport, Mesh
 

@@ -12,7 +12,7 @@ from functools import cached_property
 
 import numpy as np
 
-from ..fit._surfaces import row_norms
+from .._array import row_norms
 
 __all__ = ["Mesh", "CleanReport", "VertexFaces"]
 

@@ -1,0 +1,219 @@
+"""Surfaces and curves as small frozen dataclasses with a vectorised ``distance``, and their rebuilding from a fit's
+plain ``params`` (:func:`surface_from_params`, :func:`curve_from_params`).
+
+Distances are exact Euclidean distances (signed: positive outside / on the normal's side), so a fit's
+residuals are geometric, not algebraic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.spatial import cKDTree
+
+from .._array import row_norms, unit
+from ..errors import FitError
+from ._bspline_surface import BSplineSurface
+
+__all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "surface_from_params",
+           "Line", "Circle", "BSplineCurve", "curve_from_params"]
+
+
+def _axial_radial(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Height along ``axis`` and distance to the axis line of each point."""
+    w = points - origin
+    h = w @ axis
+    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+    return h, rho
+
+
+@dataclass(frozen=True)
+class Plane:
+    """Plane through ``origin`` (3,) with unit ``normal`` (3,)."""
+
+    origin: np.ndarray
+    normal: np.ndarray
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive on the normal's side."""
+        return (np.asarray(points, dtype=float) - self.origin) @ self.normal
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Sphere of ``radius`` about ``center`` (3,)."""
+
+    center: np.ndarray
+    radius: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive outside."""
+        return row_norms(np.asarray(points, dtype=float) - self.center) - self.radius
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Infinite circular cylinder: axis through ``axis_point`` along unit ``axis_dir``, ``radius``."""
+
+    axis_point: np.ndarray
+    axis_dir: np.ndarray
+    radius: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive outside."""
+        _, rho = _axial_radial(np.asarray(points, dtype=float), self.axis_point, self.axis_dir)
+        return rho - self.radius
+
+
+def cone_distance(points: np.ndarray, apex: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
+    """Signed distance to the nappe of a cone opening from ``apex`` along ``axis`` (positive outside)."""
+    w = points - apex
+    h, rho = _axial_radial(points, apex, axis)
+    s, c = np.sin(half_angle), np.cos(half_angle)
+    across = rho * c - h * s
+    along = rho * s + h * c  # position along the generator; < 0 means the apex is the closest point
+    return np.where(along >= 0.0, across, np.sign(across) * row_norms(w))
+
+
+@dataclass(frozen=True)
+class Cone:
+    """Half cone (one nappe) with ``apex`` (3,), unit ``axis_dir`` into the opening, ``half_angle`` in (0, π/2)."""
+
+    apex: np.ndarray
+    axis_dir: np.ndarray
+    half_angle: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,), positive outside."""
+        return cone_distance(np.asarray(points, dtype=float), self.apex, self.axis_dir, self.half_angle)
+
+
+@dataclass(frozen=True)
+class Torus:
+    """Torus about ``center`` (3,) and unit ``axis_dir``; ``major_radius`` R (to the tube's centre circle), ``minor_radius`` r."""
+
+    center: np.ndarray
+    axis_dir: np.ndarray
+    major_radius: float
+    minor_radius: float
+
+    def distance(self, points: np.ndarray) -> np.ndarray:
+        """Signed distance (n,) to the tube, positive outside it."""
+        h, rho = _axial_radial(np.asarray(points, dtype=float), self.center, self.axis_dir)
+        return np.hypot(rho - self.major_radius, h) - self.minor_radius
+
+
+def surface_from_params(kind: str, params: dict):
+    """Build the geometric surface of a :class:`~recon.fit.SurfaceFit` from its plain ``params``."""
+    p = {k: (np.asarray(v, dtype=float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
+    if kind == "plane":
+        return Plane(p["origin"], unit(p["normal"]))
+    if kind == "sphere":
+        return Sphere(p["center"], float(p["radius"]))
+    if kind == "cylinder":
+        return Cylinder(p["axis_point"], unit(p["axis_dir"]), float(p["radius"]))
+    if kind == "cone":
+        return Cone(p["apex"], unit(p["axis_dir"]), float(p["half_angle"]))
+    if kind == "torus":
+        return Torus(p["center"], unit(p["axis_dir"]), float(p["major_radius"]), float(p["minor_radius"]))
+    if kind == "bspline":
+        return BSplineSurface.from_params(params)
+    raise FitError(f"unknown surface type {kind!r}")
+
+
+@dataclass(frozen=True)
+class Line:
+    """Line through ``point`` along unit ``direction``; ``start``/``end`` are the data's ends on it."""
+
+    point: np.ndarray
+    direction: np.ndarray
+
+    def evaluate(self, t) -> np.ndarray:
+        """Points (m, 3) at signed arc lengths ``t`` (m,) from ``point``."""
+        return self.point + np.atleast_1d(np.asarray(t, float))[:, None] * self.direction
+
+    def distance(self, points) -> np.ndarray:
+        """Distance (m,) to the infinite line."""
+        w = np.asarray(points, dtype=float) - self.point
+        return np.linalg.norm(w - np.outer(w @ self.direction, self.direction), axis=1)
+
+
+@dataclass(frozen=True)
+class Circle:
+    """Circle about ``center`` in the plane of unit ``normal``; angle 0 along ``x_dir``."""
+
+    center: np.ndarray
+    normal: np.ndarray
+    radius: float
+    x_dir: np.ndarray
+
+    def evaluate(self, angle) -> np.ndarray:
+        """Points (m, 3) at ``angle`` (m,) radians, counter-clockwise about ``normal``."""
+        a = np.atleast_1d(np.asarray(angle, float))[:, None]
+        y_dir = np.cross(self.normal, self.x_dir)
+        return self.center + self.radius * (np.cos(a) * self.x_dir + np.sin(a) * y_dir)
+
+    def distance(self, points) -> np.ndarray:
+        """Distance (m,) to the full circle."""
+        w = np.asarray(points, dtype=float) - self.center
+        h = w @ self.normal
+        rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+        return np.hypot(rho - self.radius, h)
+
+
+@dataclass(frozen=True)
+class BSplineCurve:
+    """Non-rational B-spline curve: ``degree``, full ``knots`` (k,), ``control_points`` (c, 3)."""
+
+    degree: int
+    knots: np.ndarray
+    control_points: np.ndarray
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        return float(self.knots[self.degree]), float(self.knots[-self.degree - 1])
+
+    @property
+    def _spline(self) -> BSpline:
+        return BSpline(self.knots, self.control_points, self.degree, extrapolate=False)
+
+    def evaluate(self, t) -> np.ndarray:
+        """Points (m, 3) at parameters ``t`` (m,), clamped to the domain."""
+        t0, t1 = self.domain
+        return self._spline(np.clip(np.atleast_1d(np.asarray(t, float)), t0, t1))
+
+    def closest_parameters(self, points, *, samples: int = 2000, iterations: int = 6) -> np.ndarray:
+        """Parameter (m,) of the closest curve point: nearest of dense samples, then Newton steps."""
+        pts = np.asarray(points, dtype=float)
+        t0, t1 = self.domain
+        grid = np.linspace(t0, t1, samples)
+        spline = self._spline
+        _, idx = cKDTree(spline(grid)).query(pts)
+        t = grid[idx]
+        d1, d2 = spline.derivative(1), spline.derivative(2)
+        for _ in range(iterations):
+            r = spline(t) - pts
+            c1, c2 = d1(t), d2(t)
+            g = np.einsum("ij,ij->i", r, c1)
+            h = np.einsum("ij,ij->i", c1, c1) + np.einsum("ij,ij->i", r, c2)
+            t = np.clip(t - g / np.where(h > 1e-300, h, 1e-300), t0, t1)
+        return t
+
+    def distance(self, points) -> np.ndarray:
+        """Distance (m,) to the curve over its domain."""
+        pts = np.asarray(points, dtype=float)
+        return np.linalg.norm(self._spline(self.closest_parameters(pts)) - pts, axis=1)
+
+
+def curve_from_params(kind: str, params: dict):
+    """Build the geometric curve of a :class:`~recon.fit.CurveFit` from its plain ``params``."""
+    a = {k: (np.asarray(v, float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
+    if kind == "line":
+        return Line(a["point"], a["direction"] / np.linalg.norm(a["direction"]))
+    if kind == "circle":
+        return Circle(a["center"], a["normal"], float(a["radius"]), a["x_dir"])
+    if kind == "bspline":
+        return BSplineCurve(int(a["degree"]), a["knots"], a["control_points"])
+    raise FitError(f"unknown curve type {kind!r}")
