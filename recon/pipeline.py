@@ -1550,6 +1550,7 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error=None
             "triangles": int(len(mesh.faces)),
             "input_triangles": int(mesh.n_input_faces),
             "diagonal": diag,
+            "open": bool(mesh.report.boundary_edges > 0),  # boundary edges: a shell is the right answer
             "cleaning": mesh.report.summary(),
         },
         "tolerance": float(tolerance),

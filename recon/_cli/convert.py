@@ -116,7 +116,7 @@ def verdict_line(report: dict) -> str:
     if verdict["within_tolerance"] is None:
         return (f"result: deviation NOT verified (not measured): a valid result with a face for every part, but "
                 f"whether it lies within {tol} is unknown")
-    solid = "a valid shell" if report["mesh"].get("closed") is False else "a valid closed solid"
+    solid = "a valid shell (the mesh is open)" if report["mesh"].get("open") else "a valid closed solid"
     return (f"result: within tolerance ({tol}): {solid} as written, a face for every part, deviation both ways "
             f"and volume within their limits")
 
