@@ -114,8 +114,8 @@ def verdict_line(report: dict) -> str:
         more = f"; and {len(failed) - VERDICT_RULES} more rules" if len(failed) > VERDICT_RULES else ""
         return f"result: {words} ({tol}; {why}{more}); see --report's \"verdict\""
     if verdict["within_tolerance"] is None:
-        return (f"result: deviation NOT verified (not measured): a valid result with a face for every part, but "
-                f"whether it lies within {tol} is unknown")
+        return (f"result: deviation NOT verified (not measured): a valid result with a face for every part and its "
+                f"volume within the limit, but how far it lies from the mesh is unknown ({tol})")
     solid = "a valid shell (the mesh is open)" if report["mesh"].get("open") else "a valid closed solid"
     return (f"result: within tolerance ({tol}): {solid} as written, a face for every part, deviation both ways "
             f"and volume within their limits")
