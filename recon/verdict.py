@@ -13,8 +13,9 @@ each rule with its figure, its limit and the faces where it fails. T is the tole
 * ``mesh_to_shape_p95`` ≤ T and ``mesh_to_shape_max`` ≤ k·T (:data:`MAX_PER_TOLERANCE`): the mesh's vertices lie on
   the faces.
 * ``shape_to_mesh_p95`` ≤ T + the mesh's sag (the area's 95th percentile of :func:`triangle_sag`) and, face by face,
-  ``shape_to_mesh_max`` ≤ k·T + the largest sag of the face's own triangles: the faces lie on the mesh, except where
-  the mesh is a coarse tessellation of a curved face whose flat triangles cut inside it by their chord sag.
+  ``shape_to_mesh_max`` ≤ k·T + the largest sag of the face's triangles and their neighbours: the faces lie on the
+  mesh, except where the mesh is a coarse tessellation of a curved face whose flat triangles cut inside it by their
+  chord sag.
 * ``volume``: |V_shape − V_mesh| ≤ Σ area_t · (T + sag_t) over the triangles, for a closed mesh: the volume between
   two surfaces within T + sag of each other. It holds whenever the two-way bound holds, and it still checks a run
   that skipped the deviation (``deviation=False``).
@@ -159,8 +160,8 @@ def triangle_sag(mesh, *, block: int = 100_000) -> np.ndarray:
     along an edge i→j the surface then curves by κ_ij = (N_j − N_i)·(P_j − P_i) / ℓ², and a quadratic surface through
     the corners lies off the flat triangle by e(λ) = ½ Σ λ_i λ_j κ_ij ℓ_ij² at barycentric λ (the linear
     interpolation error). The sag is its largest magnitude over the triangle: r (1 − cos(π / n)) for a regular n-gon
-    prism's facets, a² / (6 r) for an equilateral triangle of side a on a sphere of radius r; zero on planes and
-    across creases.
+    prism's facets, a² / (6 r) for an equilateral triangle of side a on a sphere of radius r; zero on planes. A
+    triangle on a crease also gets the crease's own offset (:func:`_crease_sag`).
 
     Parameters
     ----------
@@ -203,6 +204,35 @@ def triangle_sag(mesh, *, block: int = 100_000) -> np.ndarray:
                      axis=1)  # κ_ij ℓ_ij²
         pairs = np.stack([g[:, 0] * g[:, 1], g[:, 1] * g[:, 2], g[:, 2] * g[:, 0]], axis=1)  # (k, 3)
         out[t_ids] = 0.5 * np.abs(q @ pairs.T).max(axis=1)
+    return np.maximum(out, _crease_sag(mesh, out))
+
+
+#: The sharpest crease :func:`_crease_sag` measures: past it the two faces fold onto each other (a knife edge), and the
+#: true edge's offset along their bisector grows without bound; it is taken as at this turn.
+_FOLD_TURN = np.deg2rad(135.0)
+
+
+def _crease_sag(mesh, sag: np.ndarray) -> np.ndarray:
+    """(m,) float: how far the true edge at a crease may lie from the mesh's crease edge.
+
+    The crease's vertices lie on the true edge, which bulges off the chord between them: off triangle A's plane by its
+    sag s_A and off B's by s_B, so by |d|² = (s_A² + s_B² − 2 s_A s_B cos φ) / sin² φ with φ the turn between the two
+    normals (s_A / sin φ where B is flat: a plane capping a coarse cylinder overhangs its polygon by the cylinder's
+    sag; √2 s where two coarse fillets meet at 90°). Zero where both sides are flat: a box's corners have none.
+    """
+    out = np.zeros(len(sag))
+    pairs = mesh.face_adjacency
+    if not len(pairs):
+        return out
+    a, b = pairs[:, 0], pairs[:, 1]
+    n = mesh.face_normals
+    phi = np.arccos(np.clip(np.einsum("ij,ij->i", n[a], n[b]), -1.0, 1.0))
+    crease = phi >= SMOOTH_TURN
+    a, b, phi = a[crease], b[crease], np.minimum(phi[crease], _FOLD_TURN)
+    sa, sb = sag[a], sag[b]
+    d = np.sqrt(np.maximum(sa * sa + sb * sb - 2.0 * sa * sb * np.cos(phi), 0.0)) / np.sin(phi)
+    np.maximum.at(out, a, d)
+    np.maximum.at(out, b, d)
     return out
 
 
@@ -329,8 +359,8 @@ def _overlap_rule(mesh, labels: np.ndarray, report: dict, tolerance: float) -> R
     return Rule("overlap", False, len(pairs), 0, names, "; ".join(says))
 
 
-def _deviation_rules(report: dict, sag: np.ndarray, area: np.ndarray, labels: np.ndarray, tolerance: float,
-                     error: str | None) -> list[Rule]:
+def _deviation_rules(report: dict, sag: np.ndarray, area: np.ndarray, labels: np.ndarray, pairs: np.ndarray,
+                     tolerance: float, error: str | None) -> list[Rule]:
     dev = report.get("deviation")
     if dev is None:
         why = f"deviation could not be measured: {error}" if error else "deviation not measured (NOT verified)"
@@ -341,9 +371,14 @@ def _deviation_rules(report: dict, sag: np.ndarray, area: np.ndarray, labels: np
     rules = [_limit_rule("mesh_to_shape_p95", m2s.get("p95"), T, "mesh→shape p95"),
              _limit_rule("mesh_to_shape_max", m2s.get("max"), k * T, "mesh→shape max"),
              _limit_rule("shape_to_mesh_p95", s2m.get("p95"), T + sag95, "shape→mesh p95")]
-    # Face by face: its largest distance from the mesh against k·T plus its own triangles' largest sag.
+    # Face by face: its largest distance from the mesh against k·T plus the largest sag of its triangles and of their
+    # neighbours across its boundary: the face's edge lies on the true edge, off the mesh's polygon by the sag of the
+    # curved face on the other side (a plane capping a coarse cylinder overhangs its polygon by the cylinder's sag).
     part_sag = np.zeros(int(labels.max()) + 1)
     np.maximum.at(part_sag, labels, sag)
+    a, b = pairs[:, 0], pairs[:, 1]
+    np.maximum.at(part_sag, labels[a], sag[b])
+    np.maximum.at(part_sag, labels[b], sag[a])
     part_of = {f["name"]: f["part"] for f in report["faces"]}
     worst, bad = None, []
     for f in dev.get("faces", []):
@@ -435,7 +470,7 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
     sag = triangle_sag(mesh)
     rules = [_solid_rule(validity, not closed, source), _coverage_rule(report, labels),
              overlap if overlap is not None else _overlap_rule(mesh, labels, report, tolerance)]
-    rules += _deviation_rules(report, sag, mesh.face_areas, labels, tolerance, deviation_error)
+    rules += _deviation_rules(report, sag, mesh.face_areas, labels, mesh.face_adjacency, tolerance, deviation_error)
     rules.append(_volume_rule(validity, mesh, sag, tolerance, closed and mesh.report.non_manifold_edges == 0))
     verdict = Verdict(tuple(rules), time.perf_counter() - t)
     for r in verdict.failed:

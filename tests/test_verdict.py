@@ -13,8 +13,8 @@ import trimesh
 
 from recon.cli import main
 from recon.mesh import clean_mesh
-from recon.verdict import (MAX_PER_TOLERANCE, SMOOTH_TURN, Rule, Verdict, judge, overlapping_shells, read_back,
-                           triangle_sag)
+from recon.verdict import (MAX_PER_TOLERANCE, RULES, SMOOTH_TURN, Rule, Verdict, judge, overlapping_shells,
+                           read_back, triangle_sag)
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures" / "data"
 
@@ -91,6 +91,32 @@ def test_two_overlapping_boxes_exit_1_with_the_reason(tmp_path, capsys):
     assert "valid closed solid" not in err.splitlines()[0]
 
 
+def test_a_hollow_part_is_not_called_valid(tmp_path, capsys):
+    """The cleaning turns every closed shell outward and every closed shell becomes a solid: a cavity would come out
+    as a second solid inside the first (volume outer + inner). Until recon builds cavities it says so, exit 1."""
+    outer = trimesh.creation.box((10, 10, 10)).subdivide_to_size(1.0)
+    inner = trimesh.creation.box((4, 4, 4)).subdivide_to_size(1.0)
+    inner.invert()
+    path = tmp_path / "hollow.stl"
+    trimesh.util.concatenate([outer, inner]).export(path)
+    rc, report = _convert(tmp_path, path)
+    err = capsys.readouterr().err
+    if rc == 0:  # (once cavities are built: the hollow part's own volume)
+        assert report["validity"]["volume"] == pytest.approx(1000.0 - 64.0, rel=1e-9)
+    else:
+        assert rc == 1 and "1 closed shell lies inside another" in err.splitlines()[0]
+
+
+def test_the_python_api_carries_the_verdict():
+    from recon import convert
+
+    result = convert(FIXTURES / "prism_clean.stl")
+    verdict = result.verdict
+    assert verdict.ok and verdict.within_tolerance is True
+    assert [r.rule for r in verdict.rules] == list(RULES)
+    assert "in memory" in verdict.rule("solid").detail  # nothing written yet: the shape in memory is judged
+
+
 def test_a_good_fixture_is_within_tolerance_exit_0(tmp_path, capsys):
     rc, report = _convert(tmp_path, FIXTURES / "box_fillet_clean.stl")
     err = capsys.readouterr().err
@@ -152,7 +178,29 @@ def test_the_sag_of_a_regular_prism_is_its_chord_sag(n):
     assert sag[side] == pytest.approx(r * np.sin(np.pi / n) ** 2 / 2, rel=1e-9)
     # ... which is the circle's chord sag r (1 − cos(π/n)) times cos²(π/2n): within 3 % from 9 facets on
     assert sag[side] == pytest.approx(r * (1 - np.cos(np.pi / n)), rel=0.031)
-    assert sag[~side].max() < 1e-12  # caps: flat, and at 90° to the sides (creases)
+    # caps: flat; but their rim triangles meet the sides at 90°, where the true circle overhangs the cap's polygon by
+    # the sides' sag (s / sin 90°)
+    rim = ~side & (sag > 1e-12)
+    assert sag[rim] == pytest.approx(r * np.sin(np.pi / n) ** 2 / 2, rel=1e-9)
+    assert rim.sum() == 2 * n
+
+
+def test_where_two_coarse_cylinders_meet_at_a_crease_the_edge_overhangs_by_both_sags():
+    """Two coarse cylinders meeting at a mitre: at the crease between their facets the true edge is off each facet's
+    plane by its sag s, so off the mesh's crease by s / cos(φ / 2) for a turn φ between the normals."""
+    r, n = 10.0, 12
+    s = r * np.sin(np.pi / n) ** 2 / 2
+    a, b = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])  # the two facets' normals, at 90°
+    from recon.verdict import _crease_sag
+
+    class Pair:  # the two triangles of one crease: the mesh attributes _crease_sag reads
+        face_adjacency = np.array([[0, 1]])
+        face_normals = np.array([a, b])
+
+    phi = np.pi / 2
+    assert _crease_sag(Pair, np.array([s, s])) == pytest.approx([s / np.cos(phi / 2)] * 2)
+    assert _crease_sag(Pair, np.array([s, 0.0])) == pytest.approx([s, s])  # a plane meeting a curved face: s / sin φ
+    assert _crease_sag(Pair, np.array([0.0, 0.0])) == pytest.approx([0.0, 0.0])  # a box's corner: none
 
 
 @pytest.mark.parametrize("subdivisions", [1, 2, 3])
@@ -250,6 +298,16 @@ def test_the_sag_allowance_is_added_to_the_shape_to_mesh_limits_only():
     assert not judge(report(2 * T + 1.01 * s), mesh, labels).ok
     # the mesh's vertices get no allowance: they lie on the true surface
     assert not judge(report(0.0, m2s_max=2 * T + s), mesh, labels).ok
+
+    # a flat cap's true edge is the circle, which overhangs the cap's polygon by the sides' sag: the cap face gets
+    # its neighbours' allowance, and only up to it
+    labels = np.where(np.abs(mesh.face_normals[:, 2]) > 0.5, 1, 0)
+    caps = report(2 * T + s)
+    caps["faces"].append({"name": "cap", "part": 1, "status": "ok", "built": True})
+    caps["deviation"]["faces"] = [{"name": "f", "shape_to_mesh_max": 0.0}, {"name": "cap", "shape_to_mesh_max": 2 * T + s}]
+    assert judge(caps, mesh, labels).ok
+    caps["deviation"]["faces"][1]["shape_to_mesh_max"] = 2 * T + 1.01 * s
+    assert judge(caps, mesh, labels).rule("shape_to_mesh_max").faces == ("cap",)
 
 
 def test_the_volume_rule_is_area_times_tolerance_plus_sag():
