@@ -304,7 +304,8 @@ def test_the_sag_allowance_is_added_to_the_shape_to_mesh_limits_only():
     labels = np.where(np.abs(mesh.face_normals[:, 2]) > 0.5, 1, 0)
     caps = report(2 * T + s)
     caps["faces"].append({"name": "cap", "part": 1, "status": "ok", "built": True})
-    caps["deviation"]["faces"] = [{"name": "f", "shape_to_mesh_max": 0.0}, {"name": "cap", "shape_to_mesh_max": 2 * T + s}]
+    caps["deviation"]["faces"] = [{"name": "f", "shape_to_mesh_max": 0.0},
+                                  {"name": "cap", "shape_to_mesh_max": 2 * T + s}]
     assert judge(caps, mesh, labels).ok
     caps["deviation"]["faces"][1]["shape_to_mesh_max"] = 2 * T + 1.01 * s
     assert judge(caps, mesh, labels).rule("shape_to_mesh_max").faces == ("cap",)
