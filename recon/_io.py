@@ -38,7 +38,9 @@ def atomic_path(path: str | os.PathLike):
 
 
 def write_json(path: str | os.PathLike, data) -> None:
-    """Write ``data`` as JSON atomically."""
+    """Write ``data`` as strict JSON atomically: a NaN or an infinity raises ``ValueError`` before the file exists
+    (JSON has no word for them; other tools cannot read a file that holds them)."""
+    text = json.dumps(data, allow_nan=False)
     with atomic_path(path) as tmp:
         with open(tmp, "w") as fh:
-            json.dump(data, fh)
+            fh.write(text)

@@ -82,13 +82,14 @@ class DeviationStats:
         return 100.0 * value / self.diagonal if self.diagonal > 0 else float("nan")
 
     def to_json(self) -> dict:
+        """The figures as strict JSON data: None where there is none (no point measured), never NaN."""
         out = {k: getattr(self, k) for k in ("max", "p95", "rms", "mean")}
         out.update({f"{k}_pct": self.pct(getattr(self, k)) for k in ("max", "p95", "rms", "mean")})
         out["count"] = self.count
         if self.signed_min is not None:
             out["signed_min"] = self.signed_min
             out["signed_max"] = self.signed_max
-        return out
+        return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
 
 
 @dataclass(frozen=True)

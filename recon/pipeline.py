@@ -42,7 +42,8 @@ class Conversion:
         The B-rep: keep modelling on it in build123d, or ``cadquery.Shape.cast(shape.wrapped)``. Made on
         first use (``brep.shape``): the command line writes the STEP without importing build123d.
     report : dict
-        Plain-JSON figures: faces by type, deviation, validity, time per stage, per-face records.
+        Strict-JSON figures: faces by type, deviation, validity, time per stage, per-face records, and the
+        ``verdict`` of the acceptance rules (:mod:`recon.verdict`).
     mesh : Mesh
     decomposition : Decomposition
     labels : (m,) int
@@ -62,6 +63,14 @@ class Conversion:
     @property
     def shape(self):
         return self.brep.shape
+
+    @property
+    def verdict(self):
+        """The acceptance rules on this result (:class:`recon.verdict.Verdict`, from ``report["verdict"]``): judged
+        on the shape in memory, and on the written file once :func:`recon.verdict.write_checked` wrote it."""
+        from .verdict import Verdict
+
+        return Verdict.from_json(self.report["verdict"])
 
 
 def convert(
@@ -162,9 +171,7 @@ def convert(
         times["deviation"] = time.perf_counter() - t
         step("deviation", 1.0)
 
-    report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance)
-    if dev_error:
-        report["warnings"].append(f"deviation not measured: {dev_error}")
+    report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error)
     return Conversion(report, mesh, dec, labels, fits, brep)
 
 
@@ -209,7 +216,11 @@ def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
     return out
 
 
-def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
+def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error=None) -> dict:
+    """The conversion's figures as strict JSON data (no NaN or infinity: None where a figure does not exist), with
+    the verdict of :func:`recon.verdict.judge` on the result in memory (the command line judges the written file)."""
+    from .verdict import judge, strict_json
+
     diag = float(mesh.diagonal)
     val = brep.validity
     faces = []
@@ -222,7 +233,9 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
                 "kind": r.kind,
                 "surface": r.surface_type,
                 "status": r.status,
+                "built": r.face is not None,
                 "area": float(r.area),
+                # a filled face has no fit of its own: its figures are NaN, which JSON has no word for
                 "fit_max": float(fit.deviation["max"]) if fit is not None else None,
                 "fit_rms": float(fit.deviation["rms"]) if fit is not None else None,
             }
@@ -232,6 +245,7 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
             "triangles": int(len(mesh.faces)),
             "input_triangles": int(mesh.n_input_faces),
             "diagonal": diag,
+            "open": bool(mesh.report.boundary_edges > 0),  # boundary edges: a shell is the right answer
             "cleaning": mesh.report.summary(),
         },
         "tolerance": float(tolerance),
@@ -245,6 +259,8 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
             "closed": bool(val.closed),
             "free_edges": int(val.free_edges),
             "volume": float(val.volume),
+            "n_solids": int(val.n_solids),
+            "n_shells": int(val.n_shells),
         },
         "warnings": list(brep.warnings),
         "seconds": {k: round(v, 4) for k, v in times.items()},
@@ -258,4 +274,10 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance) -> dict:
             report["warnings"].append(
                 f"deviation is measured to the {len(brep.faces) - missing} faces that exist; {missing} parts have none"
             )
+    if dev_error:
+        report["deviation_error"] = dev_error
+        report["warnings"].append(f"deviation not measured: {dev_error}")
+    report = strict_json(report)
+    report["verdict"] = judge(report, mesh, labels, source="the result in memory",
+                              deviation_error=dev_error).to_json()
     return report

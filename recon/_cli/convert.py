@@ -50,21 +50,27 @@ class _Progress:
 
 
 def summary(report: dict) -> str:
-    """The end-of-run summary: faces by type, deviation, validity, time."""
+    """The end-of-run summary: the verdict first (within tolerance or not, and why), then faces by type, validity,
+    deviation, time and warnings. Lengths are in the mesh's units, which the STEP file states as mm."""
     v = report["validity"]
     kinds = ", ".join(f"{n} {t}" for t, n in sorted(report["faces_by_type"].items(), key=lambda kv: -kv[1]))
-    lines = [
+    lines = [verdict_line(report)] if "verdict" in report else []
+    solid = next((r for r in report.get("verdict", {}).get("rules", []) if r["rule"] == "solid"), None)
+    if solid is not None:  # what the written file holds, read back (the verdict's own figures)
+        v = {**v, **solid["value"], "ok": solid["ok"]}
+    vol = "n/a" if v["volume"] is None else f"{v['volume']:.6g} mm³"
+    lines += [
         f"faces: {report['n_faces']} ({kinds})",
         f"solid: {'valid closed solid' if v['ok'] else 'NOT a valid closed solid'} "
-        f"({v['shape_type']}, valid={v['valid']}, closed={v['closed']}, free edges={v['free_edges']}, "
-        f"volume={v['volume']:.6g})",
+        f"({v['shape_type']}, valid={v['valid']}, closed={v['closed']}, free edges={v['free_edges']}, volume={vol})",
     ]
     dev = report.get("deviation")
     if dev:
         for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")):
             m = dev[key]
-            line = (f"deviation {way}: max {m['max']:.4g} ({m['max_pct']:.3f}%), p95 {m['p95']:.4g} "
-                    f"({m['p95_pct']:.3f}%), rms {m['rms']:.4g} ({m['rms_pct']:.3f}%) of diagonal {dev['diagonal']:.4g}")
+            line = (f"deviation {way}: max {_mm(m['max'])} ({_pct(m['max_pct'])}), p95 {_mm(m['p95'])} "
+                    f"({_pct(m['p95_pct'])}), rms {_mm(m['rms'])} ({_pct(m['rms_pct'])}) of diagonal "
+                    f"{_mm(dev['diagonal'])}")
             if key == "shape_to_mesh":
                 # Where the shape leaves the mesh: a face that reaches far out shows here only (mesh→shape
                 # measures from the mesh's points, which all lie near some face).
@@ -81,6 +87,48 @@ def summary(report: dict) -> str:
     if len(warnings) > SUMMARY_WARNINGS:
         lines.append(f"… and {len(warnings) - SUMMARY_WARNINGS} more warnings (all of them in --report's \"warnings\")")
     return "\n".join(lines)
+
+
+def _mm(x) -> str:
+    return "n/a" if x is None else f"{x:.4g} mm"
+
+
+def _pct(x) -> str:
+    return "n/a" if x is None else f"{x:.3f}%"
+
+
+#: Rules named in the verdict line; the report has all of them.
+VERDICT_RULES = 3
+
+
+def verdict_line(report: dict) -> str:
+    """One line a CAD user reads at a glance: "within tolerance", "NOT within tolerance (rule …: value vs limit, faces
+    …)", or for a run that measured no deviation "deviation NOT verified"."""
+    verdict = report["verdict"]
+    tol = f"tolerance {_mm(report['tolerance'])}"
+    failed = [r for r in verdict["rules"] if r["ok"] is False]
+    if failed:
+        # (a wrong solid is not within tolerance of the part either, whichever rule shows it)
+        words = "NOT within tolerance"
+        why = "; ".join(_rule_words(r) for r in failed[:VERDICT_RULES])
+        more = f"; and {len(failed) - VERDICT_RULES} more rules" if len(failed) > VERDICT_RULES else ""
+        return f"result: {words} ({tol}; {why}{more}); see --report's \"verdict\""
+    if verdict["within_tolerance"] is None:
+        return (f"result: deviation NOT verified (not measured): a valid result with a face for every part and its "
+                f"volume within the limit, but how far it lies from the mesh is unknown ({tol})")
+    solid = "a valid shell (the mesh is open)" if report["mesh"].get("open") else "a valid closed solid"
+    return (f"result: within tolerance ({tol}): {solid} as written, a face for every part, deviation both ways "
+            f"and volume within their limits")
+
+
+def _rule_words(rule: dict) -> str:
+    faces = rule["faces"]
+    at = f", faces {', '.join(faces[:4])}{' …' if len(faces) > 4 else ''}" if faces else ""
+    if isinstance(rule["value"], (int, float)) and isinstance(rule["limit"], (int, float)) \
+            and rule["rule"] not in ("coverage", "overlap"):
+        unit = "mm³" if rule["rule"] == "volume" else "mm"
+        return f"rule {rule['rule']}: {rule['value']:.4g} {unit} vs limit {rule['limit']:.4g} {unit}{at}"
+    return f"rule {rule['rule']}: {rule['detail']}{at}"
 
 
 #: Warnings the summary lists; the report has all of them.
@@ -113,8 +161,8 @@ def run(args) -> int:
             raise InputError(f"cannot write {opt}: folder {Path(opt).parent} does not exist")
 
     from .._io import write_json
-    from ..brep import write_shape
     from ..pipeline import convert
+    from ..verdict import write_checked
 
     # Progress lines only on a terminal: piped stderr carries the summary, or one line on error.
     tty = sys.stderr.isatty()
@@ -131,7 +179,7 @@ def run(args) -> int:
         progress=_Progress(sys.stderr) if tty else None,
         jobs=args.jobs,
     )
-    write_shape(out, result.brep, name=out.stem)
+    verdict = write_checked(result, out, name=out.stem)  # judged on the file as written, read back from disk
     if args.report:
         write_json(args.report, result.report)
     if args.preview:
@@ -143,4 +191,4 @@ def run(args) -> int:
         render_parts(args.preview, v, f, lab, kinds, title=f"{result.report['n_faces']} faces")
     print(summary(result.report), file=sys.stderr)
     print(f"wrote {out}", file=sys.stderr)
-    return 0 if result.report["validity"]["ok"] else 1
+    return 0 if verdict.ok else 1

@@ -28,7 +28,7 @@ from OCP.XCAFDoc import XCAFDoc_DocumentTool, XCAFDoc_ShapeTool
 
 from ..errors import InputError
 
-__all__ = ["read_step", "faces_of"]
+__all__ = ["read_step", "faces_of", "read_back_validity"]
 
 log = logging.getLogger(__name__)
 
@@ -142,3 +142,21 @@ def read_step(path: str | os.PathLike) -> tuple[TopoDS_Shape, tuple[str, ...]]:
         face_names.append(names[k - 1] if k else f"face_{i}")
     log.info("read %s: %d faces, %d named", path, len(faces), sum(1 for n in face_names if n in names))
     return shape, tuple(face_names)
+
+
+def read_back_validity(path: str | os.PathLike):
+    """The :class:`recon.brep.Validity` of a written ``.step``/``.stp`` or ``.brep`` file, read back from disk: what a
+    CAD program that opens it gets, not the shape in memory (a part scaled far out of OpenCascade's precision was
+    valid in memory and invalid in its STEP file)."""
+    from OCP.BRepTools import BRepTools
+
+    from ._build import shape_validity
+
+    path = Path(path)
+    if path.suffix.lower() in (".brep", ".brp"):
+        shape = TopoDS_Shape()
+        if not BRepTools.Read_s(shape, str(path), BRep_Builder()):
+            raise InputError(f"BREP file {path} could not be read back")
+    else:
+        shape, _ = read_step(path)
+    return shape_validity(shape)
