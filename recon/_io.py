@@ -22,6 +22,9 @@ from .errors import ExportError
 
 __all__ = ["atomic_path", "write_json", "remove_temporaries", "stop_commits", "commits_stopped"]
 
+#: Free space under which a failed write is put down to a full disk: a writer's buffer at most.
+DISK_FULL_BYTES = 1 << 20
+
 _LIVE: set[str] = set()
 _LIVE_LOCK = threading.Lock()
 _STOPPED: list[str] = []
@@ -92,8 +95,8 @@ def _disk_full(folder: Path) -> bool:
         st = os.statvfs(folder)
     except (OSError, AttributeError):
         return False
-    # a writer that failed with less than a block free ran out of space (OpenCascade returns a status, no errno)
-    return st.f_bavail * st.f_frsize < max(st.f_frsize, 4096)
+    # a writer fails on its last buffer (a few KiB to 1 MiB) and says only that it failed (OpenCascade: a status)
+    return st.f_bavail * st.f_frsize < DISK_FULL_BYTES
 
 
 @contextlib.contextmanager
@@ -134,9 +137,10 @@ def atomic_path(path: str | os.PathLike):
             os.unlink(tmp)
         raise _export_error(err, path) from err
     except Exception as err:  # a writer's own error (OpenCascade reports a full disk as a failed status)
+        full = _disk_full(path.parent)  # (before the temporary's removal frees its space)
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        if _disk_full(path.parent):
+        if full:
             raise ExportError(f"disk full while writing {path}") from err
         raise
     except BaseException:

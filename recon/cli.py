@@ -76,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     command, verbose = "recon", False
     try:
         try:
+            guard.check()
             args = build_parser().parse_args(argv)
             command, verbose = f"recon {args.command}", getattr(args, "verbose", False)
             args.verbose, args.quiet = verbose, getattr(args, "quiet", False)
@@ -87,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
                 raise
             code = EXIT_OK
         except BaseException as err:  # noqa: BLE001  every error becomes one line; see _one_line
-            code, line = _one_line(err, guard)
+            code, line = _one_line(err, guard, verbose)
             if verbose and guard.signum is None:
                 log.error("traceback:", exc_info=err)
             print(f"{command}: {line}", file=sys.stderr)
@@ -104,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         guard.uninstall()
 
 
-def _one_line(err: BaseException, guard) -> tuple[int, str]:
+def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, str]:
     """The exit code and the one line an error is reported with."""
     from .errors import ReconError
 
@@ -124,7 +125,8 @@ def _one_line(err: BaseException, guard) -> tuple[int, str]:
         if err.errno in (errno.EACCES, errno.EPERM):
             return EXIT_BAD_INPUT, f"error: permission denied:{where or ' ' + _short(err)}"
         return EXIT_BAD_INPUT, f"error: {err.strerror or _short(err)}:{where}".rstrip(":")
-    return EXIT_INTERNAL, f"internal error: {type(err).__name__}: {_short(err)} (run with -v for the traceback)"
+    hint = "the traceback is above" if verbose else "run with -v for the traceback"
+    return EXIT_INTERNAL, f"internal error: {type(err).__name__}: {_short(err)} ({hint})"
 
 
 def _out_of_memory(err: BaseException) -> bool:

@@ -75,14 +75,14 @@ def _writable(out: Path) -> None:
         raise ExportError(f"cannot write {out}: folder {folder} does not exist")
     if not folder.is_dir():
         raise ExportError(f"cannot write {out}: {folder} is a file, not a folder")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise ExportError(f"cannot write {out}: permission denied (folder {folder})")
     try:
         read_only = bool(os.statvfs(folder).f_flag & os.ST_RDONLY)
     except (OSError, AttributeError):
         read_only = False
-    if read_only:  # root passes os.access on a read-only mount
+    if read_only:
         raise ExportError(f"cannot write {out}: the file system of {folder} is read-only")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ExportError(f"cannot write {out}: permission denied (folder {folder})")
 
 
 def positive_length(option: str, value: float | None) -> None:

@@ -61,6 +61,7 @@ class SignalGuard:
         self._lock = threading.Lock()
         self._previous: dict = {}
         self._read = self._write = -1
+        self._armed = False  # until installed, a signal is only remembered (raising would break the install)
         if threading.current_thread() is not threading.main_thread():
             return  # signal handlers can only be set there; called from a thread, the caller owns signals
         self._read, self._write = os.pipe()
@@ -71,6 +72,12 @@ class SignalGuard:
         global _ACTIVE
         _ACTIVE = self
         threading.Thread(target=self._watch, name="recon-signals", daemon=True).start()
+        self._armed = True
+
+    def check(self) -> None:
+        """Raise :class:`Interrupted` if a signal came while the handlers were being installed."""
+        if self.signum is not None:
+            raise Interrupted(self.signum)
 
     def uninstall(self) -> None:
         """Put back the handlers found (main() called in a Python session or a test runs more than once)."""
@@ -85,6 +92,8 @@ class SignalGuard:
             _ACTIVE = None
         try:
             os.write(self._write, b"\0")  # wakes the watchdog, which sees the run finished and closes its end
+        except OSError:  # it had already woken (a signal came) and closed it
+            pass
         finally:
             os.close(self._write)
             self._write = -1
@@ -98,7 +107,9 @@ class SignalGuard:
             self.signum = signum
             _io.stop_commits(f"interrupted ({_NAMES.get(signum, signum)})")
         if first:
-            raise Interrupted(signum)
+            if self._armed:
+                raise Interrupted(signum)
+            return
         self._hard_exit(signum)
 
     def _in_child(self):
