@@ -82,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
             args.verbose, args.quiet = verbose, getattr(args, "quiet", False)
             level = logging.INFO if verbose else logging.ERROR if args.quiet else logging.WARNING
             logging.basicConfig(level=level, format="%(message)s")
+            _check_address_space(args.command)
             code = int(args.func(args) or 0)
         except SystemExit:  # argparse: --help (0) or a usage error (2, its one line already printed)
             if guard.signum is None:
@@ -103,6 +104,26 @@ def main(argv: list[str] | None = None) -> int:
 
             time.sleep(60)
         guard.uninstall()
+
+
+#: Address space (ulimit -v) below which convert and compare cannot even load their libraries: numpy, scipy,
+#: trimesh and OpenCascade map 0.95 GiB (VmPeak of a 300-triangle convert, bench/robustness.md); under that
+#: limit the loader fails, or glibc aborts the process when a thread starts, before recon can say anything.
+MIN_ADDRESS_SPACE = 1 << 30
+
+
+def _check_address_space(command: str) -> None:
+    import resource
+
+    from .errors import ReconError
+
+    if command not in ("convert", "compare"):
+        return
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE:
+        raise ReconError(f"not enough memory: the address-space limit (ulimit -v) is {soft >> 20} MiB; recon {command} "
+                         f"needs at least {MIN_ADDRESS_SPACE >> 20} MiB to load its libraries, plus about 1 GiB per "
+                         "million triangles")
 
 
 def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, str]:

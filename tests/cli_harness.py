@@ -70,18 +70,22 @@ def run_in_process(argv: list, work: Path, capfd, monkeypatch) -> Run:
     """``main(argv)`` here (the libraries stay imported: fast), with TMPDIR a private, empty folder."""
     tmp = work.parent / (work.name + "_tmp")
     tmp.mkdir(exist_ok=True)
-    monkeypatch.setenv("TMPDIR", str(tmp))
-    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
     before = snapshot(work)
     capfd.readouterr()
-    old = os.getcwd()
+    old = os.getcwd(), os.environ.get("TMPDIR"), tempfile.tempdir
+    os.environ["TMPDIR"], tempfile.tempdir = str(tmp), str(tmp)
     os.chdir(work)  # relative paths as a user types them
     try:
         code = main([str(a) for a in argv])
     except SystemExit as exc:  # argparse's usage errors and --help
         code = exc.code
     finally:
-        os.chdir(old)
+        os.chdir(old[0])
+        if old[1] is None:
+            del os.environ["TMPDIR"]
+        else:
+            os.environ["TMPDIR"] = old[1]
+        tempfile.tempdir = old[2]
     return Run(code=code, stderr=capfd.readouterr().err, work=work, tmp=tmp, before=before)
 
 
