@@ -92,6 +92,7 @@ CASES = [
     ("tolerance-nan", ["convert", "part.stl", "o.step", "--tolerance", "nan"], 2, "--tolerance"),
     ("tolerance-inf", ["convert", "part.stl", "o.step", "--tolerance", "inf"], 2, "--tolerance"),
     ("tolerance-huge", ["convert", "part.stl", "o.step", "--tolerance", "1e9"], 2, "of the part's diagonal"),
+    ("tolerance-below-precision", ["convert", "part.stl", "o.step", "--tolerance", "1e-9"], 2, "precision"),
     ("tolerance-text", ["convert", "part.stl", "o.step", "--tolerance", "abc"], 2, "invalid float"),
     ("scale-zero", ["convert", "part.stl", "o.step", "--scale", "0"], 2, "--scale"),
     ("scale-nan", ["convert", "part.stl", "o.step", "--scale", "nan"], 2, "--scale"),
