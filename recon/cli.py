@@ -73,12 +73,13 @@ def main(argv: list[str] | None = None) -> int:
     from ._cli._signals import SignalGuard
 
     guard = SignalGuard()  # first: a signal from here on gives one line and 128 + its number
-    command, verbose = "recon", False
+    command, verbose, line = "recon", False, None
     try:
         try:
             guard.check()
             args = build_parser().parse_args(argv)
             command, verbose = f"recon {args.command}", getattr(args, "verbose", False)
+            guard.prog = command
             args.verbose, args.quiet = verbose, getattr(args, "quiet", False)
             level = logging.INFO if verbose else logging.ERROR if args.quiet else logging.WARNING
             logging.basicConfig(level=level, format="%(message)s")
@@ -89,14 +90,15 @@ def main(argv: list[str] | None = None) -> int:
                 raise
             code = EXIT_OK
         except BaseException as err:  # noqa: BLE001  every error becomes one line; see _one_line
+            guard.settle()  # from here a signal is only recorded: the report of this error must get out
             code, line = _one_line(err, guard, verbose)
             if verbose and guard.signum is None:
                 log.error("traceback:", exc_info=err)
+        guard.settle()
+        if guard.signum is not None:  # (also a signal whose exception something swallowed: the run stops here)
+            code, line = guard.exit_code(), guard.message()
+        if line:
             print(f"{command}: {line}", file=sys.stderr)
-            return code
-        if guard.signum is not None:  # a signal whose exception something swallowed: the run still stops here
-            print(f"{command}: {guard.message()}", file=sys.stderr)
-            return guard.exit_code()
         return code
     finally:
         if not guard.finish():  # the watchdog is ending the process

@@ -62,6 +62,7 @@ class SignalGuard:
         self._previous: dict = {}
         self._read = self._write = -1
         self._armed = False  # until installed, a signal is only remembered (raising would break the install)
+        self._settled = False  # once the run's outcome is being reported, likewise
         if threading.current_thread() is not threading.main_thread():
             return  # signal handlers can only be set there; called from a thread, the caller owns signals
         self._read, self._write = os.pipe()
@@ -73,6 +74,10 @@ class SignalGuard:
         _ACTIVE = self
         threading.Thread(target=self._watch, name="recon-signals", daemon=True).start()
         self._armed = True
+
+    def settle(self) -> None:
+        """The run is over and its outcome about to be reported: a signal now is recorded, not raised."""
+        self._settled = True
 
     def check(self) -> None:
         """Raise :class:`Interrupted` if a signal came while the handlers were being installed."""
@@ -102,15 +107,13 @@ class SignalGuard:
     def _on_signal(self, signum, frame):
         if os.getpid() != self.owner:  # a forked child without _in_child (cannot happen on fork; kept safe)
             raise KeyboardInterrupt
-        first = self.signum is None
-        if first:
-            self.signum = signum
-            _io.stop_commits(f"interrupted ({_NAMES.get(signum, signum)})")
-        if first:
-            if self._armed:
-                raise Interrupted(signum)
+        if self.signum is not None:  # a second signal while unwinding: the user means it
+            self._hard_exit(signum)
             return
-        self._hard_exit(signum)
+        self.signum = signum
+        _io.stop_commits(f"interrupted ({_NAMES.get(signum, signum)})")
+        if self._armed and not self._settled:
+            raise Interrupted(signum)
 
     def _in_child(self):
         """A forked worker: it does not report nor watch; the parent stops it. SIGTERM kills it as usual, SIGINT
