@@ -58,6 +58,8 @@ def _make_inputs(work):
     vl, fl = cube_mesh(1e10)
     (work / "huge.stl").write_bytes(binary_stl(vl, fl))
     (work / "a_file").write_text("x")
+    (work / "protected.step").write_text("a file the user made read-only")
+    (work / "protected.step").chmod(0o444)
     (work / "out_dir").mkdir()
     os.symlink("part.stl", work / "link_to_part.stl")
     os.link(work / "part.stl", work / "hard_part.stl")
@@ -115,6 +117,7 @@ CASES = [
     ("out-folder-missing", ["convert", "part.stl", "no/such/o.step"], 2, "does not exist"),
     ("out-parent-is-file", ["convert", "part.stl", "a_file/o.step"], 2, "is a file"),
     ("out-is-folder", ["convert", "part.stl", "out_dir.step"], 2, None),  # made a folder in the test
+    ("out-read-only-file", ["convert", "part.stl", "protected.step"], 2, "read-only"),
     ("report-folder-missing", ["convert", "part.stl", "o.step", "--report", "no/r.json"], 2, "does not exist"),
     # decompose
     ("decompose-json-is-input", ["decompose", "part.stl", "--json", "part.stl"], 2, "refusing to overwrite"),

@@ -70,6 +70,8 @@ def check_outputs(inputs: list[tuple[str, str | None]], outputs: list[tuple[str,
 def _writable(out: Path) -> None:
     if out.is_dir():
         raise ExportError(f"cannot write {out}: it is a folder")
+    if out.is_file() and not out.stat().st_mode & 0o222:  # (by its mode bits: root passes os.access)
+        raise ExportError(f"cannot write {out}: the file is read-only (a file you protected is not replaced)")
     folder = out.parent
     if not folder.exists():
         # (a parent that is a file shows here as a path that does not exist; say which)
