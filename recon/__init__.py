@@ -6,6 +6,8 @@ command can set up its signal handlers and thread limits before numpy, scipy or 
 """
 
 import importlib
+import sys
+import types
 
 #: Public name -> the submodule that defines it.
 _SOURCES = {
@@ -22,6 +24,19 @@ _SOURCES = {
                      "default_spacing", "load_shape", "plot_decomposition", "shape_from_curves", "resample_curves",
                      "shape_from_mask", "skeletonize"], ".skeleton2d"),
 }
+
+
+class _Package(types.ModuleType):
+    """``recon.deviation`` and ``recon.decompose`` name a function and the submodule that defines it. Importing a
+    submodule sets it as the package's attribute; the function is what the package has always offered there."""
+
+    def __setattr__(self, name, value):
+        if isinstance(value, types.ModuleType) and _SOURCES.get(name) == f".{name}" and hasattr(value, name):
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name: str):
