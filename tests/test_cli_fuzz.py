@@ -77,7 +77,7 @@ def scratch(tmp_path_factory):
     return tmp_path_factory.mktemp("fuzz")
 
 
-@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(corruptions=CORRUPTIONS, seed=st.integers(0, 2**16))
 def test_corrupted_mesh_never_a_traceback_nor_a_false_success(base, scratch, corruptions, seed, capfd,
                                                               monkeypatch):
