@@ -20,15 +20,17 @@ def add_parser(sub):
         "corners, fit one surface per part, and assemble a solid on a shared curve network.",
     )
     p.add_argument("mesh", help="input triangle mesh: STL, OBJ, PLY, OFF, 3MF or GLB; the part's bounding-box "
-                   f"diagonal must lie between {MIN_DIAGONAL:g} and {MAX_DIAGONAL:.2g} units (OpenCascade's fixed precision)")
+                   f"diagonal must lie between {MIN_DIAGONAL:g} and {MAX_DIAGONAL:.2g} units (OpenCascade's fixed "
+                   "precision)")
     p.add_argument("out", help="output B-rep; the format follows the extension: .step/.stp (AP242 with face names "
                    "and colours), .brep (OpenCascade) or .stl (tessellated)")
     p.add_argument("--report", metavar="R.json", help="write the report (faces by type, deviation, validity, time per "
                    "stage, per-face figures) as JSON")
     p.add_argument("--preview", metavar="P.png", help="write a PNG of the result, faces coloured by kind (patches in "
                    "pastels, fillets purple, corners yellow)")
-    p.add_argument("--tolerance", type=float, metavar="T", help="fit tolerance in mesh units, at least 1e-7 (OpenCascade's "
-                   "precision) and at most 5%% of the part's bounding-box diagonal (default: max(4σ, 1e-4 × diagonal), σ the estimated mesh noise)")
+    p.add_argument("--tolerance", type=float, metavar="T", help="fit tolerance in mesh units, at least 1e-7 "
+                   "(OpenCascade's precision) and at most 5%% of the part's bounding-box diagonal (default: max(4σ, "
+                   "1e-4 × diagonal), σ the estimated mesh noise)")
     p.add_argument("--scale", type=float, metavar="S", help="feature scale of the decomposition in mesh units "
                    "(default: from the sampling and the noise)")
     p.add_argument("--no-deviation", action="store_true", help="skip measuring the deviation (faster)")
