@@ -128,3 +128,31 @@ def test_sigkill_leftover_is_removed_by_the_next_run(tmp_path):
     assert again.returncode == 0, again.stderr
     assert not left[0].exists()
     assert digest(work / SMALL) == before[SMALL]
+
+
+#: A library that swallows the interrupt (trimesh imports its optional modules under ``except BaseException``):
+#: the run goes on, as it did before to exit 0.
+SWALLOWING = """
+import sys, time
+import recon.pipeline as pipeline
+convert = pipeline.convert
+def swallowing(*args, **kwargs):
+    print("converting", flush=True)
+    try:
+        time.sleep(30)
+    except BaseException:
+        pass
+    return convert(*args, **kwargs)
+pipeline.convert = swallowing
+from recon.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_swallowed_interrupt_still_ends_the_run(tmp_path, sig):
+    """The signal's exception is caught by someone else: the run still ends with 130/143, writes nothing."""
+    _linux()
+    proc, work, tmp, before = _start(tmp_path, "--no-deviation", script=SWALLOWING, mesh=SMALL)
+    assert proc.stdout.readline().strip() == "converting"
+    _check_interrupted(proc, sig, work, tmp, before)
