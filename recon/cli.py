@@ -2,51 +2,166 @@
 
 Each subcommand lives in ``recon/_cli/<name>.py`` with ``add_parser(subparsers)`` (which registers the
 parser and sets ``func``) so that stages can add commands without touching each other.
+
+Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), 2 bad input,
+an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 an
+internal error (a bug: one line, the traceback with ``-v``), 128 + the signal when interrupted (130 SIGINT,
+143 SIGTERM).
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import logging
+import os
 import sys
 
-from .errors import ReconError
+# Before anything imports numpy: one BLAS thread unless the user chose. recon's linear algebra is small (fits of
+# a few thousand points) and it uses a second process instead; OpenBLAS reserves a buffer per thread at import,
+# which under a memory limit (ulimit -v) fails and leaves it spinning.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-__all__ = ["main", "SUBCOMMANDS"]
+__all__ = ["main", "SUBCOMMANDS", "EXIT_OK", "EXIT_NOT_GOOD", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
 
 #: Subcommand modules under ``recon._cli``, in the order ``recon --help`` lists them.
 SUBCOMMANDS = ["convert", "decompose", "compare", "skeleton"]
 
+EXIT_OK, EXIT_NOT_GOOD, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+
+log = logging.getLogger("recon")
+
+_EPILOG = ("exit codes: 0 done and good; 1 a result written that is not good (the summary says why); 2 bad input, "
+           "option or output path, or not enough memory; 3 internal error (run with -v for the traceback); "
+           "130 interrupted (SIGINT), 143 terminated (SIGTERM)")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's usage errors in one line (its default prints the whole usage first)."""
+
+    def error(self, message):
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _verbosity(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
+                       help="log progress details, and the traceback of an error, to stderr (default: off)")
+    group.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                       help="print errors only (default: off)")
+
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="recon",
         description="Turn a triangle mesh of a manufactured part into an editable B-rep (STEP), "
         "by the Voronoi skeleton decomposition of Wekel & Hellwich.",
+        epilog=_EPILOG,
     )
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details to stderr")
+    _verbosity(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:
-        importlib.import_module(f"recon._cli.{name}").add_parser(sub)
+        p = importlib.import_module(f"recon._cli.{name}").add_parser(sub)
+        _verbosity(p)  # `recon convert -v ...` as well as `recon -v convert ...`
+        p.epilog = p.epilog or _EPILOG
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
+    from ._cli._signals import SignalGuard
+
+    guard = SignalGuard()  # first: a signal from here on gives one line and 128 + its number
+    command, verbose, line = "recon", False, None
     try:
-        return int(args.func(args) or 0)
-    except ReconError as err:
-        print(f"recon {args.command}: error: {err}", file=sys.stderr)
-        return 2
-    except MemoryError as err:  # numpy's _ArrayMemoryError included: one line, not a traceback
-        print(f"recon {args.command}: error: out of memory ({err or 'an allocation failed'})", file=sys.stderr)
-        return 3
-    except KeyboardInterrupt:
-        print(f"recon {args.command}: interrupted", file=sys.stderr)
-        return 130
+        try:
+            guard.check()
+            args = build_parser().parse_args(argv)
+            command, verbose = f"recon {args.command}", getattr(args, "verbose", False)
+            guard.prog = command
+            args.verbose, args.quiet = verbose, getattr(args, "quiet", False)
+            level = logging.INFO if verbose else logging.ERROR if args.quiet else logging.WARNING
+            logging.basicConfig(level=level, format="%(message)s")
+            _check_address_space(args.command)
+            code = int(args.func(args) or 0)
+        except SystemExit:  # argparse: --help (0) or a usage error (2, its one line already printed)
+            if guard.signum is None:
+                raise
+            code = EXIT_OK
+        except BaseException as err:  # noqa: BLE001  every error becomes one line; see _one_line
+            guard.settle()  # from here a signal is only recorded: the report of this error must get out
+            code, line = _one_line(err, guard, verbose)
+            if verbose and guard.signum is None:
+                log.error("traceback:", exc_info=err)
+        guard.settle()
+        if guard.signum is not None:  # (also a signal whose exception something swallowed: the run stops here)
+            code, line = guard.exit_code(), guard.message()
+        if line:
+            print(f"{command}: {line}", file=sys.stderr)
+        return code
+    finally:
+        if not guard.finish():  # the watchdog is ending the process
+            import time
+
+            time.sleep(60)
+        guard.uninstall()
+
+
+#: Address space (ulimit -v) below which convert and compare cannot even load their libraries: numpy, scipy,
+#: trimesh and OpenCascade map 0.95 GiB (VmPeak of a 300-triangle convert, bench/robustness.md); under that
+#: limit the loader fails, or glibc aborts the process when a thread starts, before recon can say anything.
+MIN_ADDRESS_SPACE = 1 << 30
+
+
+def _check_address_space(command: str) -> None:
+    import resource
+
+    from .errors import ReconError
+
+    if command not in ("convert", "compare"):
+        return
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY and soft < MIN_ADDRESS_SPACE:
+        raise ReconError(f"not enough memory: the address-space limit (ulimit -v) is {soft >> 20} MiB; recon {command} "
+                         f"needs at least {MIN_ADDRESS_SPACE >> 20} MiB to load its libraries, plus about 1 GiB per "
+                         "million triangles")
+
+
+def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, str]:
+    """The exit code and the one line an error is reported with."""
+    from .errors import ReconError
+
+    if guard.signum is not None:  # an import turns it into ImportError, a worker into anything
+        return guard.exit_code(), guard.message()
+    if isinstance(err, KeyboardInterrupt):
+        return 130, "interrupted (SIGINT)"
+    if isinstance(err, ReconError):
+        return EXIT_BAD_INPUT, f"error: {err}"
+    if isinstance(err, MemoryError) or _out_of_memory(err):  # numpy's _ArrayMemoryError included
+        return EXIT_BAD_INPUT, f"error: not enough memory ({_short(err) or 'an allocation failed'}); free memory or " \
+                               "raise the limit (ulimit -v), or use a smaller mesh"
+    if isinstance(err, OSError) and err.errno is not None:
+        where = f" {err.filename}" if err.filename else ""
+        if err.errno in (errno.ENOSPC, errno.EDQUOT):
+            return EXIT_BAD_INPUT, f"error: disk full while writing{where}"
+        if err.errno in (errno.EACCES, errno.EPERM):
+            return EXIT_BAD_INPUT, f"error: permission denied:{where or ' ' + _short(err)}"
+        return EXIT_BAD_INPUT, f"error: {err.strerror or _short(err)}:{where}".rstrip(":")
+    hint = "the traceback is above" if verbose else "run with -v for the traceback"
+    return EXIT_INTERNAL, f"internal error: {type(err).__name__}: {_short(err)} ({hint})"
+
+
+def _out_of_memory(err: BaseException) -> bool:
+    # the dynamic loader reports an address-space limit as "failed to map segment" / "cannot allocate memory"
+    text = str(err).lower()
+    return isinstance(err, (ImportError, OSError)) and ("failed to map segment" in text or
+                                                        "cannot allocate memory" in text)
+
+
+def _short(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    return text if len(text) <= 200 else text[:197] + "..."
 
 
 if __name__ == "__main__":  # pragma: no cover

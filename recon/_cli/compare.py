@@ -5,6 +5,8 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from ._checks import MIN_SAMPLES
+
 log = logging.getLogger(__name__)
 
 
@@ -20,34 +22,44 @@ def add_parser(sub):
     p.add_argument("shape", help="B-rep as a STEP file")
     p.add_argument("--json", required=True, metavar="R.json", help="write the report here")
     p.add_argument("--preview", metavar="P.png", help="write a colour map of the signed distance here")
-    p.add_argument("--samples", type=int, default=None, help="area-uniform samples on the B-rep (default 20000)")
+    p.add_argument("--samples", type=int, default=None, metavar="N",
+                   help=f"area-uniform samples on the B-rep, at least {MIN_SAMPLES} (default 20000)")
     p.set_defaults(func=run)
     return p
 
 
 def _load_mesh(path: str):
-    import numpy as np
-    import trimesh
+    from ..mesh import load_mesh
 
+    mesh = load_mesh(path)  # the same checks and messages as convert's
+    return mesh.vertices, mesh.faces
+
+
+def _check_step(path: str) -> None:
+    """A STEP file begins with ``ISO-10303-21``; anything else is refused before OpenCascade's parser prints to
+    the terminal about it."""
     from ..errors import InputError
 
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"mesh file {path} does not exist")
     try:
-        mesh = trimesh.load(str(path), force="mesh")
-    except Exception as err:  # trimesh raises many types on bad files
-        raise InputError(f"mesh file {path} could not be read: {err}".splitlines()[0]) from err
-    faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))))
-    if len(faces) == 0:
-        raise InputError(f"mesh file {path} holds no triangles")
-    return np.asarray(mesh.vertices, dtype=float), faces.astype(np.int64)
+        with open(path, "rb") as fh:
+            head = fh.read(256).lstrip(b"\xef\xbb\xbf \t\r\n")
+    except FileNotFoundError:
+        raise InputError(f"STEP file {path} does not exist") from None
+    except IsADirectoryError:
+        raise InputError(f"STEP file {path} is a folder") from None
+    if not head.upper().startswith(b"ISO-10303-21"):
+        raise InputError(f"{path} is not a STEP file (it does not begin with ISO-10303-21)")
 
 
 def run(args) -> int:
     from .._io import write_json
     from ..deviation import deviation, plot_deviation
+    from ._checks import at_least, check_outputs
 
+    at_least("--samples", args.samples, MIN_SAMPLES, " (the p95 must rest on 5 samples or more)")
+    check_outputs([("input mesh", args.mesh), ("input shape", args.shape)],
+                  [("--json", args.json), ("--preview", args.preview)])
+    _check_step(args.shape)
     vertices, faces = _load_mesh(args.mesh)
     report = deviation(vertices, faces, args.shape, samples=args.samples)
     write_json(args.json, report.to_json())

@@ -7,6 +7,8 @@ import sys
 import time
 from pathlib import Path
 
+from ._checks import MAX_DIAGONAL, MIN_DIAGONAL
+
 OUTPUT_SUFFIXES = (".step", ".stp", ".brep", ".stl")
 
 
@@ -17,15 +19,18 @@ def add_parser(sub):
         description="Reconstruct an editable B-rep from a triangle mesh: decompose it into smooth patches, fillets and "
         "corners, fit one surface per part, and assemble a solid on a shared curve network.",
     )
-    p.add_argument("mesh", help="input triangle mesh: STL, OBJ, PLY, OFF, 3MF or GLB")
+    p.add_argument("mesh", help="input triangle mesh: STL, OBJ, PLY, OFF, 3MF or GLB; the part's bounding-box "
+                   f"diagonal must lie between {MIN_DIAGONAL:g} and {MAX_DIAGONAL:.2g} units (OpenCascade's fixed "
+                   "precision)")
     p.add_argument("out", help="output B-rep; the format follows the extension: .step/.stp (AP242 with face names "
                    "and colours), .brep (OpenCascade) or .stl (tessellated)")
     p.add_argument("--report", metavar="R.json", help="write the report (faces by type, deviation, validity, time per "
                    "stage, per-face figures) as JSON")
     p.add_argument("--preview", metavar="P.png", help="write a PNG of the result, faces coloured by kind (patches in "
                    "pastels, fillets purple, corners yellow)")
-    p.add_argument("--tolerance", type=float, metavar="T", help="fit tolerance in mesh units (default: max(4σ, 1e-4 × "
-                   "bounding-box diagonal), σ the estimated mesh noise)")
+    p.add_argument("--tolerance", type=float, metavar="T", help="fit tolerance in mesh units, at least 1e-7 "
+                   "(OpenCascade's precision) and at most 5%% of the part's bounding-box diagonal (default: max(4σ, "
+                   "1e-4 × diagonal), σ the estimated mesh noise)")
     p.add_argument("--scale", type=float, metavar="S", help="feature scale of the decomposition in mesh units "
                    "(default: from the sampling and the noise)")
     p.add_argument("--no-deviation", action="store_true", help="skip measuring the deviation (faster)")
@@ -35,18 +40,27 @@ def add_parser(sub):
 
 
 class _Progress:
-    """One line per stage on stderr: name, then its time when it ends."""
+    """One line per stage on stderr (``stream`` None: none): name, then its time when it ends. Between stages it
+    stops a run whose interrupt some library swallowed (see ``recon._cli._signals``)."""
 
     def __init__(self, stream):
         self.stream = stream
         self.t0 = {}
+        self.done = set()  # the CLI loads the mesh itself: convert()'s own "load" stage is not shown again
 
     def __call__(self, stage, frac):
+        from .._io import commits_stopped
+
+        if commits_stopped():
+            raise KeyboardInterrupt(commits_stopped())
+        if self.stream is None or stage in self.done:
+            return
         if frac == 0.0:
             self.t0[stage] = time.perf_counter()
             print(f"  {stage:<10} …", end="", file=self.stream, flush=True)
         else:
             print(f" {time.perf_counter() - self.t0[stage]:6.2f} s", file=self.stream, flush=True)
+            self.done.add(stage)
 
 
 def summary(report: dict) -> str:
@@ -146,39 +160,47 @@ class _RepeatedInSummary:
 
 def run(args) -> int:
     from ..errors import InputError
+    from ._checks import check_outputs, check_size, check_tolerance, positive_length, at_least
 
     out = Path(args.out)
     if out.suffix.lower() not in OUTPUT_SUFFIXES:
         raise InputError(f"output {out}: unknown extension {out.suffix!r}; use one of {', '.join(OUTPUT_SUFFIXES)}")
-    if args.tolerance is not None and not args.tolerance > 0:
-        raise InputError(f"--tolerance must be a positive length, got {args.tolerance}")
-    if args.scale is not None and not args.scale > 0:
-        raise InputError(f"--scale must be a positive length, got {args.scale}")
-    if args.jobs is not None and args.jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
-    for opt in (args.out, args.report, args.preview):
-        if opt and not Path(opt).parent.exists():
-            raise InputError(f"cannot write {opt}: folder {Path(opt).parent} does not exist")
+    positive_length("--tolerance", args.tolerance)
+    positive_length("--scale", args.scale)
+    at_least("--jobs", args.jobs, 1)
+    check_outputs([("input mesh", args.mesh)],
+                  [("output", args.out), ("--report", args.report), ("--preview", args.preview)])
 
     from .._io import write_json
+    from ..mesh import load_mesh
     from ..pipeline import convert
     from ..verdict import write_checked
 
     # Progress lines only on a terminal: piped stderr carries the summary, or one line on error.
-    tty = sys.stderr.isatty()
+    tty = sys.stderr.isatty() and not args.quiet
+    progress = _Progress(sys.stderr if tty else None)
     if not args.verbose:
         for handler in logging.getLogger().handlers:
             handler.addFilter(_RepeatedInSummary())
     if tty:
         print(f"recon convert {args.mesh}", file=sys.stderr)
+    # Loaded here, so that the part's size and the tolerance are checked before the work starts.
+    t_load = time.perf_counter()
+    progress("load", 0.0)
+    mesh = load_mesh(args.mesh)
+    progress("load", 1.0)
+    t_load = time.perf_counter() - t_load
+    check_size(mesh.diagonal)
+    check_tolerance(args.tolerance, mesh.diagonal)
     result = convert(
-        args.mesh,
+        mesh,
         tolerance=args.tolerance,
         scale=args.scale,
         deviation=not args.no_deviation,
-        progress=_Progress(sys.stderr) if tty else None,
+        progress=progress,
         jobs=args.jobs,
     )
+    result.report["seconds"]["load"] = result.report["seconds"].get("load", 0.0) + t_load
     verdict = write_checked(result, out, name=out.stem)  # judged on the file as written, read back from disk
     if args.report:
         write_json(args.report, result.report)
@@ -189,6 +211,7 @@ def run(args) -> int:
         diag = result.report["mesh"]["diagonal"]
         v, f, lab, kinds = result_tessellation(result.brep, deflection=diag * 2e-3)
         render_parts(args.preview, v, f, lab, kinds, title=f"{result.report['n_faces']} faces")
-    print(summary(result.report), file=sys.stderr)
-    print(f"wrote {out}", file=sys.stderr)
+    if not args.quiet:
+        print(summary(result.report), file=sys.stderr)
+        print(f"wrote {out}", file=sys.stderr)
     return 0 if verdict.ok else 1

@@ -10,10 +10,13 @@ log = logging.getLogger(__name__)
 def add_parser(sub):
     p = sub.add_parser("decompose", help="decompose a mesh into smooth patches and feature parts (§4)")
     p.add_argument("mesh", help="triangle mesh (STL/OBJ/PLY/OFF/3MF/GLB)")
-    p.add_argument("--json", required=True, help="output JSON: a part id per input triangle, parts, skeleton")
-    p.add_argument("--preview", help="output PNG preview")
-    p.add_argument("--scale", type=float, help="feature scale in mesh units (default: from sampling and noise)")
-    p.add_argument("--omega-min", type=float, help="skeleton pruning threshold (arc length, mesh units)")
+    p.add_argument("--json", required=True, metavar="D.json",
+                   help="output JSON: a part id per input triangle, parts, skeleton")
+    p.add_argument("--preview", metavar="P.png", help="output PNG preview")
+    p.add_argument("--scale", type=float, metavar="S",
+                   help="feature scale in mesh units, > 0 (default: from sampling and noise)")
+    p.add_argument("--omega-min", type=float, metavar="W",
+                   help="skeleton pruning threshold (arc length, mesh units, > 0)")
     p.add_argument("--jobs", type=int, metavar="N", help="processes to use (default: the cores available)")
     p.set_defaults(func=run)
     return p
@@ -22,13 +25,13 @@ def add_parser(sub):
 def run(args) -> int:
     from .._io import write_json
     from ..decompose import decompose
-    from ..errors import InputError
     from ..mesh import input_labels, load_mesh
+    from ._checks import at_least, check_outputs, positive_length
 
-    if args.scale is not None and not args.scale > 0:
-        raise InputError(f"--scale must be a positive length, got {args.scale}")
-    if args.jobs is not None and args.jobs < 1:
-        raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+    positive_length("--scale", args.scale)
+    positive_length("--omega-min", args.omega_min)
+    at_least("--jobs", args.jobs, 1)
+    check_outputs([("input mesh", args.mesh)], [("--json", args.json), ("--preview", args.preview)])
     mesh = load_mesh(args.mesh)
     dec = decompose(mesh, scale=args.scale, omega_min=args.omega_min, jobs=args.jobs)
     write_json(args.json, dec.to_json(triangle_labels=input_labels(mesh, dec.labels)))

@@ -9,7 +9,6 @@ import sys
 import time
 from pathlib import Path
 
-from ..errors import ExportError, InputError
 
 log = logging.getLogger(__name__)
 
@@ -19,7 +18,7 @@ def _positive(text: str) -> float:
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-    if not value > 0 or value == float("inf"):
+    if not value > 0 or value == float("inf"):  # (NaN fails the first test)
         raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
     return value
 
@@ -70,13 +69,11 @@ def run(args) -> int:
     from ..skeleton2d import load_shape, plot_decomposition, skeletonize
     from .._io import atomic_path
 
+    from ._checks import check_outputs
+
     out_json = Path(args.json)
     out_png = Path(args.plot) if args.plot else None
-    for out in (out_json, out_png):
-        if out is not None and not out.parent.is_dir():
-            raise ExportError(f"cannot write {out}: folder {out.parent} does not exist")
-    if out_png is not None and out_png.resolve() == out_json.resolve():
-        raise InputError(f"--json and --plot name the same file {out_json}")
+    check_outputs([("input shape", args.shape)], [("--json", args.json), ("--plot", args.plot)])
 
     t0 = time.perf_counter()
     shape = load_shape(args.shape, invert=args.invert)

@@ -96,9 +96,13 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
 
     import trimesh
 
+    if ext == ".stl" and (problem := _binary_stl_problem(path)):
+        raise MeshError(f"{path}: {problem}")
     try:
         scene = trimesh.load_scene(path, file_type=SUPPORTED_FORMATS[ext], process=False)
     except Exception as err:  # trimesh raises many kinds (ValueError, KeyError, struct.error, ...)
+        if ext == ".stl" and (problem := _ascii_stl_problem(path)):
+            raise MeshError(f"{path}: {problem}") from None
         raise MeshError(f"{path}: cannot read as {ext[1:].upper()}: {_one_line(err)}") from err
 
     vertices, faces, offset = [], [], 0
@@ -123,9 +127,49 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             faces.append(f + offset)
             offset += len(v)
     if not faces:
+        if ext == ".stl" and (problem := _ascii_stl_problem(path)):
+            raise MeshError(f"{path}: {problem}")
         raise MeshError(f"{path}: the file has no triangles")
     log.debug("%s: read %d triangles from %d placements", path, sum(map(len, faces)), len(faces))
     return np.concatenate(vertices), np.concatenate(faces)
+
+
+#: Binary STL: an 80-byte header, the triangle count (uint32), then 50 bytes per triangle.
+_STL_HEADER, _STL_TRIANGLE = 84, 50
+
+
+def _looks_ascii_stl(head: bytes) -> bool:
+    return head.lstrip().lower().startswith(b"solid") and b"facet" in head.lower()
+
+
+def _binary_stl_problem(path: Path) -> str | None:
+    """What is wrong with a binary STL's length, in the user's words, or None (also for an ASCII STL)."""
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(1024)
+    count = int.from_bytes(head[80:84], "little") if len(head) >= _STL_HEADER else None
+    expected = None if count is None else _STL_HEADER + _STL_TRIANGLE * count
+    if size == expected or _looks_ascii_stl(head):  # (a binary header may begin with "solid" too)
+        return None
+    if count is None:
+        return f"the file is truncated ({size} bytes; a binary STL has an {_STL_HEADER}-byte header)"
+    found = (size - _STL_HEADER) // _STL_TRIANGLE
+    if size < expected:
+        return f"the file is truncated (expected {count:,} triangles, found {found:,})"
+    return (f"the file is longer than its triangle count says ({count:,} triangles are {expected:,} bytes, the file "
+            f"has {size:,}): corrupt or not an STL")
+
+
+def _ascii_stl_problem(path: Path) -> str | None:
+    """What is wrong with an ASCII STL that could not be read, or None."""
+    with open(path, "rb") as fh:
+        data = fh.read()
+    if not _looks_ascii_stl(data[:1024]):
+        return None
+    facets = data.lower().count(b"endfacet")
+    if b"endsolid" not in data[-1024:].lower():
+        return f"the file is truncated (an ASCII STL that stops after {facets:,} complete triangles, no 'endsolid')"
+    return None
 
 
 def _one_line(err: Exception) -> str:
