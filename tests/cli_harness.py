@@ -133,14 +133,15 @@ def read_stl(path: Path) -> tuple:
     return read_triangles(path)
 
 
-def step_is_valid_solid(path: Path) -> bool:
-    """Re-read a written STEP file: one valid closed solid."""
+def step_is_valid_solid(path: Path, *, shell: bool = False) -> bool:
+    """Re-read a written STEP file: one valid closed solid (or, with ``shell``, a valid shell: an open mesh's
+    accepted result)."""
     from OCP.BRepCheck import BRepCheck_Analyzer
-    from OCP.TopAbs import TopAbs_SOLID
+    from OCP.TopAbs import TopAbs_SHELL, TopAbs_SOLID
     from OCP.TopExp import TopExp_Explorer
 
     from recon.brep._step_read import read_step
 
     shape, _ = read_step(path)
-    solids = TopExp_Explorer(shape, TopAbs_SOLID)
-    return solids.More() and BRepCheck_Analyzer(shape).IsValid()
+    found = TopExp_Explorer(shape, TopAbs_SHELL if shell else TopAbs_SOLID)
+    return found.More() and BRepCheck_Analyzer(shape).IsValid()
