@@ -3,6 +3,7 @@
 The public API is declared here once; implementation modules are private.
 """
 
+from .batch import BatchRow, convert_many
 from .curves import CurveNetwork, curve_network
 from .decompose import Decomposition, decompose, face_recovery
 from .deviation import DeviationReport, DeviationStats, FaceDeviation, deviation, plot_deviation
@@ -29,10 +30,12 @@ from .skeleton2d import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "BatchRow",
     "BrepError",
     "CleanReport",
     "Conversion",
     "convert",
+    "convert_many",
     "CurveFit",
     "CurveNetwork",
     "Decomposition",

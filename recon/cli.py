@@ -16,7 +16,7 @@ from .errors import ReconError
 __all__ = ["main", "SUBCOMMANDS"]
 
 #: Subcommand modules under ``recon._cli``, in the order ``recon --help`` lists them.
-SUBCOMMANDS = ["convert", "decompose", "compare", "skeleton"]
+SUBCOMMANDS = ["convert", "batch", "decompose", "compare", "skeleton"]
 
 
 def build_parser() -> argparse.ArgumentParser:
