@@ -111,8 +111,9 @@ def find_parts(specs: list[str], *, exclude: str | None = None) -> list[Part]:
             listing = {path: fs.info(path)}
         else:
             raise InputError(f"{spec}: no such file or folder")
-        meshes = {p: info for p, info in listing.items() if _is_mesh(p)
-                  and not (ex_fs is not None and type(ex_fs) is type(fs) and _inside(p, ex_path))}
+        searched = len(listing) != 1 or not fs.isfile(path)  # a file named outright is taken as it is
+        meshes = {p: info for p, info in listing.items() if _is_mesh(p) and not (
+            searched and ex_fs is not None and type(ex_fs) is type(fs) and _inside(p, ex_path))}
         if not meshes:
             raise InputError(f"{spec}: no mesh files ({exts}) found")
         for p, info in meshes.items():
