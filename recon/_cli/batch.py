@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 import sys
 import time
 
@@ -83,9 +84,11 @@ def run(args) -> int:
     from ..batch import convert_many
 
     if not args.verbose:
+        # Dask's own notices (ports taken, tasks cancelled on Ctrl-C, workers closing) are not the user's business
+        # unless asked with -v. The variable reaches the local cluster's worker processes too.
+        os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "error")
         import distributed  # noqa: F401  (its import sets its loggers' levels: quieten them after it)
 
-        # Dask's own notices (ports taken, workers closing) are not the user's business unless asked with -v.
         for name in ("distributed", "tornado"):
             logging.getLogger(name).setLevel(logging.ERROR)
     show = _Bar(sys.stderr) if sys.stderr.isatty() else _Lines(sys.stderr)
