@@ -130,7 +130,7 @@ def test_separate_scheduler_and_workers_same_results(local_run, tmp_path):
         {k: (r["status"], r["faces"]) for k, r in reference.items()}
 
 
-def test_fsspec_urls_and_timeout(tmp_path):
+def test_fsspec_urls_timeout_and_memory_limit(tmp_path):
     """memory:// lives in one process, so the cluster is threads in this process; the worker reads and writes
     through fsspec, not the disk. A file:// input is read in place."""
     import fsspec
@@ -144,6 +144,8 @@ def test_fsspec_urls_and_timeout(tmp_path):
         rows = convert_many(["memory://batch-in", f"file://{GOOD}"], "memory://batch-out", client=client,
                             preview=False, format="brep")
         timed = convert_many([str(slow)], tmp_path / "t", client=client, timeout=0.05, preview=False)
+        # 64 MiB is below what the part's process holds once recon and OpenCascade are imported: stopped at once.
+        starved = convert_many([str(GOOD)], tmp_path / "m", client=client, memory_limit=64 * 2**20, preview=False)
     by_input = {r["input"]: r for r in (rows.to_dict("records") if hasattr(rows, "to_dict") else map(vars, rows))}
     assert by_input["memory:///batch-in/a/prism.stl"]  # fsspec's own spelling of the URL["status"] == "ok"
     assert by_input[str(GOOD)]["status"] == "ok"  # file:// is the local disk: a plain path
@@ -154,6 +156,18 @@ def test_fsspec_urls_and_timeout(tmp_path):
     status = list(timed["status"]) if hasattr(timed, "columns") else [r.status for r in timed]
     message = list(timed["message"]) if hasattr(timed, "columns") else [r.message for r in timed]
     assert status == ["error"] and message == ["timed out after 0.05 s"]
+    starved = starved.to_dict("records") if hasattr(starved, "to_dict") else list(map(vars, starved))
+    assert [r["status"] for r in starved] == ["error"] and "used more than 64 MiB" in starved[0]["message"]
+    assert not (tmp_path / "m" / "prism_coarse.step").exists()
+
+
+def test_report_ok_prefers_the_verdict():
+    from recon.batch._inputs import report_ok
+
+    valid = {"validity": {"ok": True}}
+    assert report_ok(valid) and not report_ok({"validity": {"ok": False}})
+    # The acceptance verdict (deviation within tolerance, every part a face) overrules a valid solid alone.
+    assert not report_ok(dict(valid, verdict={"ok": False})) and report_ok({"validity": {"ok": False}, "verdict": {"ok": True}})
 
 
 @pytest.mark.parametrize("args, words", [

@@ -37,13 +37,15 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def _check_options(fmt: str, tolerance, timeout, workers) -> None:
+def _check_options(fmt: str, tolerance, timeout, workers, memory_limit) -> None:
     if fmt not in OUTPUT_FORMATS:
         raise InputError(f"format must be one of {', '.join(OUTPUT_FORMATS)}, got {fmt!r}")
     if tolerance is not None and not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
         raise InputError(f"tolerance must be a positive finite length, got {tolerance}")
     if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
         raise InputError(f"timeout must be a positive number of seconds, got {timeout}")
+    if memory_limit is not None and not (isinstance(memory_limit, int) and memory_limit > 0):
+        raise InputError(f"memory_limit must be a positive number of bytes, got {memory_limit}")
     if workers is not None and not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers must be at least 1, got {workers}")
 
@@ -109,6 +111,7 @@ def convert_many(
     timeout: float | None = None,
     force: bool = False,
     preview: bool = True,
+    memory_limit: int | None = None,
     progress: Callable[[BatchProgress], None] | None = None,
 ):
     """Convert many meshes on a Dask cluster; each one as ``recon.convert`` would, in its own process.
@@ -136,6 +139,8 @@ def convert_many(
         Convert again parts an earlier run finished (default: skip them).
     preview : bool
         Write a preview picture per part (for ``summary.html``).
+    memory_limit : int, optional
+        Bytes one part's process may use; past it the part is an ``error`` row (default: the worker's memory limit).
     progress : callable(BatchProgress), optional
 
     Returns
@@ -146,7 +151,7 @@ def convert_many(
     from .. import __version__
 
     specs = [str(s) for s in ([inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs))]
-    _check_options(format, tolerance, timeout, workers)
+    _check_options(format, tolerance, timeout, workers, memory_limit)
     if client is not None and (scheduler is not None or workers is not None):
         raise InputError("give either a client, a scheduler address or a number of workers")
     if scheduler is not None and workers is not None:
@@ -170,6 +175,7 @@ def convert_many(
             else:
                 jobs.append({"url": part.url, "name": part.name, "note": part.note, "out": out, "suffix": suffix,
                              "tolerance": tolerance, "preview": preview, "timeout": timeout, "key": key,
+                             "memory_limit": memory_limit,
                              "size": part.size})
         rows += _run_jobs(jobs, rows, writer, client=client, scheduler=scheduler, workers=workers,
                           progress=progress)

@@ -79,8 +79,8 @@ class _Runner:
                     return {"error": f"timed out after {timeout:g} s"}
                 if memory_limit and self.rss() > memory_limit:
                     self.kill()
-                    return {"error": f"stopped: used more than {memory_limit / 2**20:,.0f} MiB, the memory limit per "
-                                     "part (the worker's memory limit)"}
+                    return {"error": f"stopped: used more than {memory_limit / 2**20:,.0f} MiB, the memory limit "
+                                     "per part"}
         line, _, self.buf = self.buf.partition(b"\n")
         return json.loads(line)
 
@@ -167,7 +167,8 @@ def run_part(job: dict) -> dict:
     """Convert one part on this worker; return its summary row as a dict (never raises for the part's faults).
 
     ``job``: ``url``, ``name``, ``out`` (the output folder), ``suffix`` (of the shape), ``tolerance``,
-    ``preview``, ``timeout`` (seconds or None), ``key`` (stored in the report for reruns).
+    ``preview``, ``timeout`` (seconds or None), ``key`` (stored in the report for reruns), ``memory_limit`` (bytes or
+    None: the worker's).
     """
     t0 = time.perf_counter()
     row = {"input": job["url"], "output": "", "status": "error", "faces": None, "valid": None,
@@ -184,7 +185,7 @@ def run_part(job: dict) -> dict:
         spec = {"mesh": mesh, "stage": stage, "name": job["name"], "suffix": job["suffix"],
                 "tolerance": job["tolerance"], "preview": job["preview"], "key": job["key"],
                 "input_name": posixpath.basename(in_path)}
-        limit = _worker_memory_limit()
+        limit = job.get("memory_limit") or _worker_memory_limit()
         result = runner.run(spec, timeout=job["timeout"], memory_limit=limit)
         if "error" in result:
             row["message"] = _join(result["error"].replace(mesh, job["url"]), row["message"])
