@@ -27,7 +27,7 @@ def _noop(x):
     return x
 
 
-def overhead(n: int = 400) -> None:
+def overhead(n: int = 2000) -> None:
     """The scheduling cost of one part: a no-op task's round trip, one at a time (latency) and n at once
     (throughput of the scheduler and the comms); then the runner's protocol round trip for a part that fails at
     once (staging, the JSON lines, no conversion)."""

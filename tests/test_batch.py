@@ -104,8 +104,8 @@ def test_separate_scheduler_and_workers_same_results(local_run, tmp_path):
     sched_file = tmp_path / "scheduler.json"
     env = dict(os.environ, RECON_TEST_ABORT="boom.stl", PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     dask = [sys.executable, "-m", "dask"]  # the `dask` command of this environment
-    procs = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--dashboard-address", "127.0.0.1:0",
-                               "--scheduler-file", str(sched_file)], env=env, stderr=subprocess.DEVNULL)]
+    procs = [subprocess.Popen([*dask, "scheduler", "--host", "127.0.0.1", "--port", "0", "--dashboard-address",
+                               "127.0.0.1:0", "--scheduler-file", str(sched_file)], env=env, stderr=subprocess.DEVNULL)]
     try:
         for _ in range(600):
             if sched_file.exists() and sched_file.stat().st_size:
@@ -167,7 +167,8 @@ def test_report_ok_prefers_the_verdict():
     valid = {"validity": {"ok": True}}
     assert report_ok(valid) and not report_ok({"validity": {"ok": False}})
     # The acceptance verdict (deviation within tolerance, every part a face) overrules a valid solid alone.
-    assert not report_ok(dict(valid, verdict={"ok": False})) and report_ok({"validity": {"ok": False}, "verdict": {"ok": True}})
+    assert not report_ok(dict(valid, verdict={"ok": False}))
+    assert report_ok({"validity": {"ok": False}, "verdict": {"ok": True}})
 
 
 @pytest.mark.parametrize("args, words", [

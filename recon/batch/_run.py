@@ -40,7 +40,8 @@ def _cores() -> int:
 def _check_options(fmt: str, tolerance, timeout, workers, memory_limit) -> None:
     if fmt not in OUTPUT_FORMATS:
         raise InputError(f"format must be one of {', '.join(OUTPUT_FORMATS)}, got {fmt!r}")
-    if tolerance is not None and not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance) and tolerance > 0):
+    if tolerance is not None and not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance)
+                                      and tolerance > 0):
         raise InputError(f"tolerance must be a positive finite length, got {tolerance}")
     if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
         raise InputError(f"timeout must be a positive number of seconds, got {timeout}")
@@ -181,7 +182,7 @@ def convert_many(
                           progress=progress)
     finally:
         writer.close()
-        write_html(out, rows, title=f"recon batch: {out}")
+        write_html(out, rows, title=f"recon batch: {out}", previews=preview)
     try:
         import pandas as pd
     except ImportError:

@@ -124,7 +124,7 @@ tr.error td.status{background:#f6b0b0} tr.invalid td.status{background:#f6dca0} 
 """
 
 
-def write_html(out: str, rows: list[BatchRow], *, title: str = "recon batch") -> None:
+def write_html(out: str, rows: list[BatchRow], *, title: str = "recon batch", previews: bool = True) -> None:
     """``summary.html``: the rows as a table sortable by any column (click its header), the failures first, a
     preview picture per converted part. Plain HTML and script: it opens offline."""
     fs, root = fs_of(out)
@@ -137,7 +137,8 @@ def write_html(out: str, rows: list[BatchRow], *, title: str = "recon batch") ->
         name = posixpath.basename(r.output)
         stem = posixpath.splitext(name)[0]
         picture = stem + PREVIEW_SUFFIX
-        has_picture = bool(r.output) and fs.exists(posixpath.join(root, picture))
+        # On a local disk look; on a remote store (one request per part) trust the run's own flag.
+        has_picture = bool(r.output) and (fs.exists(posixpath.join(root, picture)) if is_local(fs) else previews)
         img = f'<a href="{html.escape(picture)}"><img src="{html.escape(picture)}" alt=""></a>' if has_picture else ""
         out_cell = f'<a href="{html.escape(name)}">{html.escape(name)}</a>' if name else ""
         cells = [f'<td data-v="{int(has_picture)}">{img}</td>', f"<td>{html.escape(r.input)}</td>",
