@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from ..errors import InputError
 from ..mesh import SUPPORTED_FORMATS
 
-__all__ = ["Part", "find_parts", "name_parts", "run_key", "finished_report", "report_ok", "is_local", "OUTPUT_FORMATS"]
+__all__ = ["Part", "find_parts", "name_parts", "run_key", "finished_reports", "report_ok", "is_local", "OUTPUT_FORMATS"]
 
 #: ``--format`` → the output file's suffix (the writer chooses the format by it).
 OUTPUT_FORMATS = {"step": ".step", "brep": ".brep", "stl": ".stl"}
@@ -151,22 +151,32 @@ def run_key(part: Part, *, version: str, tolerance: float | None, fmt: str) -> d
             "tolerance": tolerance, "format": fmt}
 
 
-def finished_report(out: str, part: Part, key: dict) -> dict | None:
-    """The report of an earlier run that made this part with ``key`` and called it good, if its outputs are all
-    there; else None (the part is converted again)."""
+def finished_reports(out: str, parts: list[Part], keys: list[dict]) -> list[dict | None]:
+    """For each part, the report of an earlier run that made it with its key and called it good, if its outputs
+    are all there; else None (the part is converted again).
+
+    One listing of the output folder and one batched read of the reports (concurrent on object stores), not a
+    request per part and per file."""
     fs, root = fs_of(out)
-    report_path = posixpath.join(root, part.name + REPORT_SUFFIX)
-    shape_path = posixpath.join(root, part.name + OUTPUT_FORMATS[key["format"]])
     try:
-        if not fs.isfile(shape_path):
-            return None
-        with fs.open(report_path, "rb") as fh:
-            report = json.loads(fh.read())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(report, dict) or report.get("batch") != key or not report_ok(report):
-        return None
-    return report
+        present = set(fs.find(root, maxdepth=1)) if fs.isdir(root) else set()
+    except OSError:
+        present = set()
+    wanted = {}
+    for part, key in zip(parts, keys):
+        report_path = posixpath.join(root, part.name + REPORT_SUFFIX)
+        if report_path in present and posixpath.join(root, part.name + OUTPUT_FORMATS[key["format"]]) in present:
+            wanted[report_path] = (part, key)
+    texts = fs.cat(list(wanted), on_error="omit") if wanted else {}
+    found = {}
+    for path, (part, key) in wanted.items():
+        try:
+            report = json.loads(texts[path])
+        except (KeyError, ValueError):
+            continue
+        if isinstance(report, dict) and report.get("batch") == key and report_ok(report):
+            found[part.url] = report
+    return [found.get(part.url) for part in parts]
 
 
 def report_ok(report: dict) -> bool:

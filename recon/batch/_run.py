@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ..errors import InputError
-from ._inputs import OUTPUT_FORMATS, Part, find_parts, finished_report, fs_of, is_local, name_parts, run_key
+from ._inputs import OUTPUT_FORMATS, Part, find_parts, finished_reports, fs_of, is_local, name_parts, run_key
 from ._summary import BatchRow, SummaryWriter, write_html
 
 __all__ = ["convert_many", "BatchProgress"]
@@ -163,11 +163,11 @@ def convert_many(
     out = _prepare_out(out, parts, suffix)
 
     jobs, rows = [], []
+    keys = [run_key(part, version=__version__, tolerance=tolerance, fmt=format) for part in parts]
+    earlier = [None] * len(parts) if force else finished_reports(out, parts, keys)
     writer = SummaryWriter(out)
     try:
-        for part in parts:
-            key = run_key(part, version=__version__, tolerance=tolerance, fmt=format)
-            report = None if force else finished_report(out, part, key)
+        for part, key, report in zip(parts, keys, earlier):
             if report is not None:
                 dev = (report.get("deviation") or {}).get("mesh_to_shape") or {}
                 rows.append(BatchRow(part.url, posixpath.join(out, part.name + suffix), "skipped", report["n_faces"],
@@ -176,8 +176,7 @@ def convert_many(
             else:
                 jobs.append({"url": part.url, "name": part.name, "note": part.note, "out": out, "suffix": suffix,
                              "tolerance": tolerance, "preview": preview, "timeout": timeout, "key": key,
-                             "memory_limit": memory_limit,
-                             "size": part.size})
+                             "memory_limit": memory_limit, "size": part.size})
         rows += _run_jobs(jobs, rows, writer, client=client, scheduler=scheduler, workers=workers,
                           progress=progress)
     finally:
