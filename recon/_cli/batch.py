@@ -35,6 +35,11 @@ def add_parser(sub):
     return p
 
 
+def _message(row) -> str:
+    # recon's messages about a file start with its path, which the line already shows.
+    return row.message.removeprefix(f"{row.input}: ")
+
+
 class _Bar:
     """A tqdm bar on a terminal: parts done, failed, rate and time left."""
 
@@ -49,10 +54,10 @@ class _Bar:
                 print(f"Dask dashboard: {p.dashboard}", file=self.stream)
             self.bar = tqdm(total=p.total, unit="part", file=self.stream, dynamic_ncols=True)
             return
-        self.bar.update(1)
-        self.bar.set_postfix(failed=p.failed, refresh=False)
         if p.row.status in ("error", "invalid"):
-            self.bar.write(f"{p.row.status}: {p.row.input}: {p.row.message}", file=self.stream)
+            self.bar.write(f"{p.row.status} {p.row.input}: {_message(p.row)}", file=self.stream)
+        self.bar.set_postfix(failed=p.failed, refresh=False)
+        self.bar.update(1)
 
     def close(self) -> None:
         if self.bar is not None:
@@ -71,7 +76,7 @@ class _Lines:
                 print(f"Dask dashboard: {p.dashboard}", file=self.stream, flush=True)
             return
         r = p.row
-        what = f"{r.faces} faces, {r.seconds:.1f} s" if r.faces is not None else r.message
+        what = f"{r.faces} faces, {r.seconds:.1f} s" if r.faces is not None else _message(r)
         if r.faces is not None and r.message:
             what += f"; {r.message}"
         print(f"[{p.done}/{p.total}] {r.status} {r.input}: {what}", file=self.stream, flush=True)
