@@ -228,9 +228,10 @@ def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, progress) 
             job = by_key[future.key]
             try:
                 row = BatchRow(**future.result())
-            except Exception as err:  # noqa: BLE001 — the worker itself died (KilledWorker) or the task was lost
+            except Exception as err:  # noqa: BLE001 — the worker died (KilledWorker), or cannot run recon at all
+                why = "the worker died" if type(err).__name__ == "KilledWorker" else "the task failed on its worker"
                 row = BatchRow(job["url"], "", "error", None, None, None, 0.0,
-                               " ".join(f"the worker died: {type(err).__name__}: {err}".split())[:300])
+                               " ".join(f"{why}: {type(err).__name__}: {err}".split())[:300])
             new.append(row)
             writer.add(row)
             tell(row)
