@@ -110,6 +110,9 @@ class _Runner:
         return f": {lines[-1][:200]}" if lines else ""
 
     def run(self, job: dict, *, timeout: float | None, memory_limit: int | None) -> dict:
+        # The log holds this part's output only (the runner shares the file's offset): its last line is about it.
+        self.log.seek(0)
+        self.log.truncate()
         self.proc.stdin.write((json.dumps(job) + "\n").encode())
         self.proc.stdin.flush()
         return self.read(timeout, memory_limit=memory_limit)
