@@ -20,6 +20,7 @@ _SOURCES = {
     **dict.fromkeys(["CurveFit", "SurfaceFit", "fit_curve", "fit_surface", "noise_sigma"], ".fit"),
     **dict.fromkeys(["CleanReport", "Mesh", "clean_mesh", "input_labels", "load_mesh"], ".mesh"),
     **dict.fromkeys(["Conversion", "convert"], ".pipeline"),
+    **dict.fromkeys(["BatchRow", "convert_many"], ".batch"),
     **dict.fromkeys(["Part2D", "SegmentGraph", "Shape2D", "Skeleton2D", "SkeletonResult", "default_omega_min",
                      "default_spacing", "load_shape", "plot_decomposition", "shape_from_curves", "resample_curves",
                      "shape_from_mask", "skeletonize"], ".skeleton2d"),
@@ -59,10 +60,12 @@ def __dir__():
 __version__ = "0.1.0"
 
 __all__ = [
+    "BatchRow",
     "BrepError",
     "CleanReport",
     "Conversion",
     "convert",
+    "convert_many",
     "CurveFit",
     "CurveNetwork",
     "Decomposition",

@@ -27,7 +27,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 __all__ = ["main", "SUBCOMMANDS", "EXIT_OK", "EXIT_NOT_GOOD", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
 
 #: Subcommand modules under ``recon._cli``, in the order ``recon --help`` lists them.
-SUBCOMMANDS = ["convert", "decompose", "compare", "skeleton"]
+SUBCOMMANDS = ["convert", "batch", "decompose", "compare", "skeleton"]
 
 EXIT_OK, EXIT_NOT_GOOD, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 

@@ -1,0 +1,166 @@
+"""recon batch on this machine: throughput on 1 and 2 workers, scaling efficiency, per-part overhead, isolation.
+
+    python bench/bench_batch.py overhead             # Dask no-op round trip, runner protocol round trip
+    python bench/bench_batch.py isolation            # a crashing part: in the worker vs in a runner process
+    python bench/bench_batch.py throughput [--corpus DIR] [--workers 1 2]
+
+Prints Markdown rows for bench/batch.md. Run it alone: it measures wall time on every core.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "fixtures" / "data"
+SCANS = ["block", "casting", "fandisk", "fandisk-b", "fandisk-b_noisy0.1", "joint", "rocker-arm", "rocker-arm2500"]
+
+
+def _noop(x):
+    return x
+
+
+def overhead(n: int = 2000) -> None:
+    """The scheduling cost of one part: a no-op task's round trip, one at a time (latency) and n at once
+    (throughput of the scheduler and the comms); then the runner's protocol round trip for a part that fails at
+    once (staging, the JSON lines, no conversion)."""
+    from distributed import Client, LocalCluster
+
+    from recon.batch._task import run_part
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1") as cluster, \
+            Client(cluster) as client:
+        client.submit(_noop, 0, pure=False).result()
+        t = time.perf_counter()
+        for i in range(50):
+            client.submit(_noop, i, pure=False).result()
+        serial = (time.perf_counter() - t) / 50
+        t = time.perf_counter()
+        client.gather(client.map(_noop, range(n), pure=False))
+        batch = (time.perf_counter() - t) / n
+        print(f"| Dask no-op task, one at a time (submit → result) | {serial * 1e3:.1f} ms |")
+        print(f"| Dask no-op task, {n} at once on 2 workers (wall / n) | {batch * 1e3:.2f} ms |")
+        out = tempfile.mkdtemp()
+        job = {"url": str(Path(out) / "missing.stl"), "name": "missing", "note": "", "out": out, "suffix": ".step",
+               "tolerance": None, "preview": False, "timeout": None, "key": {}, "size": 0}
+        t = time.perf_counter()
+        client.submit(run_part, job, pure=False).result()  # starts the runner (imports recon and OCP)
+        start = time.perf_counter() - t
+        times = []
+        for _ in range(20):
+            t = time.perf_counter()
+            row = client.submit(run_part, dict(job), pure=False).result()
+            times.append(time.perf_counter() - t)
+        assert row["status"] == "error"
+        print(f"| runner start (import recon + OpenCascade), once per worker and after a crash | {start:.2f} s |")
+        print(f"| part round trip through Dask and the runner, no conversion (median of 20) | "
+              f"{statistics.median(times) * 1e3:.1f} ms |")
+        shutil.rmtree(out)
+
+
+def _abort_in_worker(x):
+    os.abort()
+
+
+def _set_env(name, value):
+    if value is None:
+        os.environ.pop(name, None)
+    else:
+        os.environ[name] = value
+
+
+def _sleep(x):
+    time.sleep(x)
+    return x
+
+
+def isolation() -> None:
+    """What a crashing part costs when the worker runs it itself (nanny restart, allowed-failures retries) and when
+    the worker's runner process runs it."""
+    from distributed import Client, LocalCluster
+
+    from recon.batch._task import run_part
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1") as cluster, \
+            Client(cluster) as client:
+        good = client.submit(_sleep, 2.0, pure=False)
+        t = time.perf_counter()
+        bad = client.submit(_abort_in_worker, 0, pure=False)
+        try:
+            bad.result()
+            outcome = "returned"
+        except Exception as err:  # noqa: BLE001 — KilledWorker expected
+            outcome = type(err).__name__
+        crash = time.perf_counter() - t
+        good_ok = good.result() == 2.0
+        client.wait_for_workers(2, timeout=120)
+        back = time.perf_counter() - t
+        print(f"| in the worker: os.abort() in a task | {outcome} after {crash:.1f} s (the task retried on "
+              f"restarted workers until allowed-failures); both workers back after {back:.1f} s; a task beside it "
+              f"{'finished' if good_ok else 'was lost'} |")
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1") as cluster, \
+            Client(cluster) as client:
+        out = tempfile.mkdtemp()
+        shutil.copy(DATA / "prism_coarse.stl", Path(out) / "boom.stl")
+        job = {"url": str(Path(out) / "boom.stl"), "name": "boom", "note": "", "out": out + "/o", "suffix": ".step",
+               "tolerance": None, "preview": False, "timeout": None, "key": {}, "size": 0}
+        os.makedirs(out + "/o")
+        client.run(_set_env, "RECON_TEST_ABORT", "boom.stl")  # before the runners start: they inherit it
+        for w in client.scheduler_info()["workers"]:  # every worker's runner started: the crash is timed alone
+            client.submit(run_part, dict(job, url="/nonexistent.stl"), workers=[w], pure=False).result()
+        t = time.perf_counter()
+        row = client.submit(run_part, job, pure=False).result()
+        crash = time.perf_counter() - t
+        print(f"| in the runner: os.abort() in the conversion | `{row['status']}` row after {crash:.2f} s "
+              f"({row['message']}); the worker lives; the next part starts a new runner |")
+        client.run(_set_env, "RECON_TEST_ABORT", None)
+        shutil.rmtree(out)
+
+
+def throughput(corpus: str | None, workers: list[int]) -> None:
+    from recon.batch import convert_many
+
+    parts = sorted(str(p) for p in DATA.glob("*.stl"))
+    if corpus:
+        parts = sorted(str(p) for p in Path(corpus).glob("*.stl"))[:40]
+    scans = [f"/work/shared/meshes/{s}.off" for s in SCANS if Path(f"/work/shared/meshes/{s}.off").exists()]
+    print(f"parts: {len(parts)} from {'the corpus' if corpus else 'fixtures/data'}, scans: {len(scans)}",
+          file=sys.stderr)
+    base = {}
+    for n in workers:
+        out = tempfile.mkdtemp(prefix=f"bench-batch-{n}-")
+        t = time.perf_counter()
+        rows = convert_many(parts + scans, out, workers=n, preview=False, force=True)
+        wall = time.perf_counter() - t
+        busy = float(rows["seconds"].sum())
+        counts = rows["status"].value_counts().to_dict()
+        base.setdefault("wall", wall)
+        eff = base["wall"] / (n * wall)
+        print(f"| {n} | {len(rows)} | {wall:.1f} | {60 * len(rows) / wall:.1f} | {busy:.1f} | {eff:.2f} | "
+              f"{', '.join(f'{v} {k}' for k, v in counts.items())} |")
+        shutil.rmtree(out)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("what", choices=["overhead", "isolation", "throughput"])
+    ap.add_argument("--corpus")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    args = ap.parse_args()
+    if args.what == "overhead":
+        overhead()
+    elif args.what == "isolation":
+        isolation()
+    else:
+        throughput(args.corpus, args.workers)
+
+
+if __name__ == "__main__":
+    main()
