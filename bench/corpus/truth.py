@@ -2,7 +2,8 @@
 
 Layout of the cache folder (git-ignored; everything is regenerated from the seed):
 
-- ``parts/seed_NNNNN.step`` and ``.json`` (the part's metadata, :func:`bench.corpus.parts.part`);
+- ``parts/seed_NNNNN.step`` and ``.json`` (the part's metadata, :func:`bench.corpus.parts.part`, plus what the STEP
+  round trip changed); the STEP is the truth: the meshes are made from the solid read back from it;
 - ``REGIME/seed_NNNNN.stl`` (``.obj`` for ``export-obj``), ``.labels.npy`` (true face per triangle; for the OBJ per
   polygon) and ``.json`` (the regime's drawn parameters, triangle count, mesh→true deviation).
 """
@@ -49,8 +50,22 @@ def true_part(seed: int, cache: Path = DEFAULT_CACHE):
     solid, meta = part(seed)
     with atomic_path(step) as tmp:
         export_step(solid, str(tmp))
+    back = read_part(step)
+    # the STEP is the truth (meshes are made from it); what writing it changed is recorded
+    meta["step_volume_error"] = float(back.volume / solid.volume - 1)
+    meta["step_faces"] = len(back.faces())
     write_json(js, meta)
     return step, meta
+
+
+def read_part(step: Path):
+    """The one solid of a true STEP file (build123d)."""
+    from build123d import import_step
+
+    solids = import_step(str(step)).solids()
+    if len(solids) != 1:
+        raise RuntimeError(f"{step}: {len(solids)} solids")
+    return solids[0]
 
 
 def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
@@ -66,7 +81,7 @@ def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
     if mesh.exists() and js.exists():
         return Truth(seed, regime, step, mesh, meta, json.loads(js.read_text()))
     folder.mkdir(parents=True, exist_ok=True)
-    solid, _ = part(seed)
+    solid = read_part(step)
     v, t, lab, info = tessellate_info(solid, regime, seed)
     info.update(triangles=int(len(t)), vertices=int(len(v)), watertight=is_watertight(t))
     if regime == "export-obj":
