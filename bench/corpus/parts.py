@@ -473,42 +473,29 @@ def _family_blended(rng):
     return b
 
 
-def _family_revolved(rng):
-    base, desc = _base_revolved(rng)
-    b = _Builder(rng, base, "revolved")
-    b.meta["ops"].append(desc)
-    for name in ("circles", "bolt", "axial", "tiny"):
-        if rng.uniform() < 0.5:
-            _feature(b, rng, name)
-    return b
+def _family_with_options(family, base, options, *, freeform=False):
+    """A family: ``base(rng)``, then each ``(feature, probability)`` of ``options`` in order, drawn independently."""
+
+    def build(rng):
+        shape, desc = base(rng)
+        b = _Builder(rng, shape, family)
+        b.meta["ops"].append(desc)
+        if freeform:
+            b.meta["traits"].append("freeform")
+        for name, p in options:
+            if rng.uniform() < p:
+                _feature(b, rng, name)
+        return b
+
+    return build
 
 
-def _family_lofted(rng):
-    base, desc = _base_lofted(rng)
-    b = _Builder(rng, base, "lofted")
-    b.meta["ops"].append(desc)
-    b.meta["traits"].append("freeform")
-    for name in ("top", "axial", "holes"):
-        if rng.uniform() < 0.35:
-            _feature(b, rng, name)
-    return b
-
-
-def _family_swept(rng):
-    base, desc = _base_swept(rng)
-    b = _Builder(rng, base, "swept")
-    b.meta["ops"].append(desc)
-    b.meta["traits"].append("freeform")
-    if rng.uniform() < 0.6:
-        _feature(b, rng, "plate")
-    return b
-
-
-def _family_primitive(rng):
-    base, desc = _base_primitive(rng)
-    b = _Builder(rng, base, "primitive")
-    b.meta["ops"].append(desc)
-    return b
+_family_revolved = _family_with_options("revolved", _base_revolved,
+                                        [("circles", 0.5), ("bolt", 0.5), ("axial", 0.5), ("tiny", 0.5)])
+_family_lofted = _family_with_options("lofted", _base_lofted, [("top", 0.35), ("axial", 0.35), ("holes", 0.35)],
+                                      freeform=True)
+_family_swept = _family_with_options("swept", _base_swept, [("plate", 0.6)], freeform=True)
+_family_primitive = _family_with_options("primitive", _base_primitive, [])
 
 
 #: family and its weight (share of the seeds): prismatic parts are the commonest machined parts
