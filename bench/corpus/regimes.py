@@ -39,8 +39,8 @@ SCAN_SIGMA = {"scan05": 0.0005, "scan10": 0.001, "scan20": 0.002, "scan50": 0.00
 #: triangle-count ranges (issue 22: fine 20k–300k; issue 23: scans 30k–300k)
 FINE_RANGE = (20_000, 300_000)
 SCAN_RANGE = (30_000, 300_000)
-#: the remesher's (pure Python) mesh is kept at most this big; subdivision takes it to the target
-REMESH_MAX = 2_500
+#: the remesher (pure Python, ~0.05 s a triangle) works at most this many triangles; subdivision takes it to the target
+REMESH_MAX = 1_000
 
 
 def make_fixtures():
