@@ -8,7 +8,7 @@ from ``default_rng([seed, REGIME_CODE[regime]])``, so a (seed, regime) pair is o
   nodes (closed by construction; checked); vertices exactly on the faces.
 - ``export-obj``: the same mesh as an OBJ whose planar faces are convex polygons (:func:`planar_polygons`).
 - ``fine``: scan-like isotropic triangles with no noise, 20k–300k triangles (the fixtures' regime): the fixtures'
-  remesher at a few thousand triangles, then 1:4 subdivisions with every new vertex projected onto its face/edge.
+  remesher at ≤ 1,000 triangles, then 1:4 subdivisions with every new vertex projected onto its face/edge.
 - ``scanNN``: dense (30k–300k triangles), uneven (edges on curved faces 1/2–1/3 as long as on planes), Gaussian noise
   along the vertex normals with σ = 0.05 / 0.1 / 0.2 / 0.5 % of the diagonal (``scan05``/``scan10``/``scan20``/
   ``scan50``); ``scan10-holes``: σ = 0.1 % and 1–3 % of the area removed in 2–4 patches (an occluded scan);
