@@ -68,10 +68,13 @@ def _types(bd) -> list:
 
 
 def check_solid(shape) -> dict:
-    """One solid, valid, every edge between exactly two faces (a seam counts twice on its one face)."""
+    """One solid, valid, every edge between two faces (a seam counts twice on its one face; a degenerated edge, a
+    cone's apex or a sphere's pole, has one face by construction)."""
+    from OCP.BRep import BRep_Tool
     from OCP.BRepCheck import BRepCheck_Analyzer
     from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SOLID
     from OCP.TopExp import TopExp, TopExp_Explorer
+    from OCP.TopoDS import TopoDS
     from OCP.TopTools import TopTools_IndexedDataMapOfShapeListOfShape
 
     solids, exp = 0, TopExp_Explorer(shape, TopAbs_SOLID)
@@ -80,7 +83,8 @@ def check_solid(shape) -> dict:
         exp.Next()
     emap = TopTools_IndexedDataMapOfShapeListOfShape()
     TopExp.MapShapesAndAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, emap)
-    free = sum(1 for i in range(1, emap.Extent() + 1) if emap.FindFromIndex(i).Extent() < 2)
+    free = sum(1 for i in range(1, emap.Extent() + 1)
+               if emap.FindFromIndex(i).Extent() < 2 and not BRep_Tool.Degenerated_s(TopoDS.Edge_s(emap.FindKey(i))))
     valid = bool(BRepCheck_Analyzer(shape).IsValid())
     return {"solids": solids, "free_edges": free, "brep_valid": valid, "valid": solids == 1 and valid and free == 0}
 
