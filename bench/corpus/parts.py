@@ -214,7 +214,8 @@ def _holes(b, rng):
     sx, sy, sz = b.size()
     kind = ["through", "blind", "counterbore"][int(rng.integers(3))]
     pattern = ["single", "row", "grid"][int(rng.integers(3))]
-    nx, ny = {"single": (1, 1), "row": (int(rng.integers(2, 7)), 1), "grid": tuple(int(k) for k in rng.integers(2, 6, 2))}[pattern]
+    counts = {"single": (1, 1), "row": (int(rng.integers(2, 7)), 1), "grid": tuple(int(k) for k in rng.integers(2, 6, 2))}
+    nx, ny = counts[pattern]
     pitch = min(sx / (nx + 1), sy / (ny + 1))
     r = float(pitch * rng.uniform(0.12, 0.35))
     top, bottom = b.top(), b.bottom()
