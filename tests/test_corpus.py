@@ -1,0 +1,156 @@
+"""The random-part corpus (bench/corpus): a deterministic generator, exact ground truth, and recon's regression cases.
+
+Everything asserted is ground truth: a seed builds the same solid in any process; the export tessellation's vertices
+lie on their true faces (measured with OpenCascade's exact BRepExtrema); the mesh is closed; the OBJ's polygons have
+the triangles' area; exit 0 never comes with a result farther from the true part than the tolerance recon states.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("build123d")
+
+from bench.corpus import regimes  # noqa: E402
+from bench.corpus.parts import part  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+#: quick seeds covering the families: swept, sphere, prismatic (shell, holes, variable fillet), lofted, a pyramid with
+#: every edge blended (four fillets at the apex), revolved (a tangent chain of tori)
+SEEDS = (4, 10, 12, 21, 26, 27, 29, 30)
+
+
+def _signature(seed):
+    solid, meta = part(seed)
+    return meta["faces"], round(meta["volume"], 6), round(meta["area"], 6), meta["occ_types"]
+
+
+@pytest.fixture(scope="module")
+def parts():
+    return {s: part(s) for s in SEEDS}
+
+
+def test_same_seed_same_part_in_this_process_and_another():
+    quick = (10, 21, 29)
+    here = [_signature(s) for s in quick]
+    assert here == [_signature(s) for s in quick]
+    code = ("import json, sys; from tests.test_corpus import _signature; "
+            f"print(json.dumps([_signature(s) for s in {list(quick)}]))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True,
+                         env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"})
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == [list(x[:3]) + [x[3]] for x in here]
+
+
+def test_step_round_trip_is_the_part(parts, tmp_path):
+    from build123d import export_step, import_step
+
+    for seed, (solid, meta) in parts.items():
+        assert solid.is_valid and len(solid.solids()) == 1
+        path = tmp_path / f"{seed}.step"
+        export_step(solid, str(path))
+        back = import_step(str(path))
+        assert len(back.faces()) == meta["faces"] == len(meta["face_types"])
+        # STEP writes reals to 15+ digits: only round-off may change (seed 1, not here, loses 3e-4 of its volume in
+        # the round trip: the corpus takes the STEP as the truth and records that in meta["step_volume_error"])
+        assert back.volume == pytest.approx(meta["volume"], rel=1e-9)
+        assert 1 <= meta["faces"] <= 150
+
+
+def test_bad_seed_is_refused():
+    for bad in (-1, 1.5, "3", True):
+        with pytest.raises(ValueError):
+            part(bad)
+
+
+def test_export_vertices_lie_on_their_true_faces(parts):
+    """Every welded vertex is a node of its face's OpenCascade triangulation, and an inner node is the face's surface
+    at the node's (u, v) to round-off; a node on the face's boundary lies on the edge curve, which OpenCascade keeps
+    within the edge's tolerance of the surface. (Not measured by projecting: OpenCascade's point projections miss
+    seed 4's swept B-spline by up to 1.2e-5 of the diagonal where S(u, v) is exact to 2e-15.)"""
+    from OCP.BRep import BRep_Tool
+    from OCP.TopLoc import TopLoc_Location
+    from scipy.spatial import cKDTree
+
+    for seed, (solid, meta) in parts.items():
+        v, t, lab = regimes.tessellate(solid, "export", seed)  # leaves the triangulations on the solid's faces
+        assert len(lab) == len(t) and lab.min() >= 0
+        assert set(lab.tolist()) == set(range(meta["faces"]))  # every true face has triangles, every triangle a face
+        assert regimes.is_watertight(t)
+        diag = meta["diagonal"]
+        for fi, face in enumerate(solid.faces()):
+            loc = TopLoc_Location()
+            tri = BRep_Tool.Triangulation_s(face.wrapped, loc)
+            surf = BRep_Tool.Surface_s(face.wrapped)  # located: in the same frame as the transformed nodes
+            trsf = loc.Transformation()
+            pts = [tri.Node(i).Transformed(trsf) for i in range(1, tri.NbNodes() + 1)]
+            nodes = np.array([[p.X(), p.Y(), p.Z()] for p in pts])
+            on_surface = np.array([p.Distance(surf.Value(tri.UVNode(i).X(), tri.UVNode(i).Y()))
+                                   for i, p in enumerate(pts, start=1)])
+            edge_tol = max(BRep_Tool.Tolerance_s(e.wrapped) for e in face.edges())
+            own = np.unique(t[lab == fi])
+            dist, idx = cKDTree(nodes).query(v[own])
+            assert dist.max() <= 1e-12 * diag, (seed, fi, dist.max() / diag)
+            inner = on_surface <= 1e-9 * diag
+            assert (on_surface[~inner] <= edge_tol).all(), (seed, fi, on_surface.max() / diag, edge_tol / diag)
+            assert inner.sum() >= len(nodes) - len(np.unique(np.concatenate(
+                [np.array([BRep_Tool.PolygonOnTriangulation_s(e.wrapped, tri, loc).Node(k)
+                           for k in range(1, BRep_Tool.PolygonOnTriangulation_s(e.wrapped, tri, loc).NbNodes() + 1)])
+                 for e in face.edges()]))), (seed, fi)  # only boundary nodes may be off the surface
+
+
+def test_export_settings_are_in_the_issue_range():
+    for seed in range(50):
+        chord, angle = regimes.export_settings(seed)
+        assert 1e-4 <= chord <= 1e-2 and 0.1 <= angle <= 0.8
+
+
+def test_quad_obj_has_the_triangles_area(parts, tmp_path):
+    import trimesh
+
+    merged = 0
+    for seed, (solid, meta) in parts.items():
+        v, t, lab = regimes.tessellate(solid, "export", seed)
+        polys, plab = regimes.planar_polygons(v, t, lab, [k == "plane" for k in meta["face_types"]])
+        merged += len(t) - len(polys)
+        path = tmp_path / f"{seed}.obj"
+        regimes.write_obj(path, v, polys)
+        back = trimesh.load(path, process=False, force="mesh")
+        assert back.area == pytest.approx(trimesh.Trimesh(v, t, process=False).area, rel=1e-12)
+        assert len(back.faces) == len(t)  # a convex n-gon fans into n − 2 triangles: as many as were merged
+    assert merged > 0
+
+
+# recon on a fixed handful: the rule of issue 20 (exit 0 means within the stated tolerance), as measured today.
+_REGRESSION = [
+    pytest.param(8, id="seed8-plate-holes-rib"),  # exit 1 today: it may exit 0 only once it is right
+    pytest.param(10, id="seed10-sphere"),  # exit 0 with the sphere within tolerance
+    pytest.param(2, id="seed2-shelled-cylinder", marks=pytest.mark.xfail(strict=True, reason=(
+        "issue 20: export seed 2 (a shelled cylinder, 5 true faces, 188 triangles): exit 0 with 4 faces, "
+        "ours→true p95 12.4 % of the diagonal against a stated tolerance of 0.05 %"))),
+    pytest.param(11, id="seed11-hexagon-plate", marks=pytest.mark.xfail(strict=True, reason=(
+        "issue 20: export seed 11 (a hexagonal plate, 8 faces, 20 triangles): exit 0 with 2 faces, ours→true p95 24 % of "
+        "the diagonal against a stated tolerance of 0.05 %"))),
+]
+
+
+@pytest.mark.parametrize("seed", _REGRESSION)
+def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path):
+    from bench.corpus.measure import run_recon
+    from bench.corpus.truth import materialise
+    from recon.deviation import model_deviation
+
+    truth = materialise(seed, "export", tmp_path / "cache")
+    out, report = tmp_path / "ours.step", tmp_path / "report.json"
+    res = run_recon(truth.mesh, out, report, timeout=300, memory_mb=4096)
+    assert res["status"] in ("ok", "exit1"), res
+    if res["exit"] != 0:
+        return
+    tol = json.loads(report.read_text())["tolerance"]
+    md = model_deviation(out, truth.step, samples=5000)
+    assert md.to_reference.p95 <= tol, (md.to_reference.p95, tol)
