@@ -12,11 +12,13 @@ import sys
 import time
 from pathlib import Path
 
+import jsonschema
 import pytest
 
 from recon.batch import BatchRow, convert_many, find_parts, name_parts
 from recon.batch._summary import write_html
 from recon.cli import main
+from recon.verdict import schema
 
 DATA = Path(__file__).resolve().parents[1] / "fixtures" / "data"
 #: The smallest fixture (the 8-face prism, a CAD export of a few hundred triangles): seconds per conversion.
@@ -65,6 +67,7 @@ def test_good_parts_converted_bad_ones_error_rows(local_run):
     for key, stem in (("prism.stl", "prism"), ("sub/prism.stl", "prism~2")):
         row = rows[key]
         report = json.loads((out / f"{stem}.report.json").read_text())
+        jsonschema.validate(report, schema())  # written in the runner process, unseen by conftest's check
         assert row["status"] == "ok" and row["valid"] == "True"
         assert int(row["faces"]) == report["n_faces"] == 8  # the prism's 8 true faces
         assert float(row["mesh_to_shape_p95_pct"]) == report["deviation"]["mesh_to_shape"]["p95_pct"]
@@ -146,10 +149,11 @@ def test_fsspec_urls_timeout_and_memory_limit(tmp_path):
         # 64 MiB is below what the part's process holds once recon and OpenCascade are imported: stopped at once.
         starved = convert_many([str(GOOD)], tmp_path / "m", client=client, memory_limit=64 * 2**20, preview=False)
     by_input = {r["input"]: r for r in (rows.to_dict("records") if hasattr(rows, "to_dict") else map(vars, rows))}
-    assert by_input["memory:///batch-in/a/prism.stl"]  # fsspec's own spelling of the URL["status"] == "ok"
+    assert by_input["memory:///batch-in/a/prism.stl"]["status"] == "ok"  # fsspec's own spelling of the URL
     assert by_input[str(GOOD)]["status"] == "ok"  # file:// is the local disk: a plain path
     assert mem.exists("/batch-out/prism.brep") and mem.exists("/batch-out/prism_coarse.brep")
     report = json.loads(mem.cat("/batch-out/prism.report.json"))
+    jsonschema.validate(report, schema())
     assert report["n_faces"] == 8 and report["batch"]["format"] == "brep"
     assert mem.cat("/batch-out/summary.csv").decode().count("\n") == 3
     status = list(timed["status"]) if hasattr(timed, "columns") else [r.status for r in timed]
