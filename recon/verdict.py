@@ -30,6 +30,7 @@ import json
 import logging
 import os
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -60,6 +61,23 @@ SMOOTH_TURN = np.deg2rad(45.0)
 #: Points of one closed shell tested against another for :func:`overlapping_shells` (vertices first, then centroids):
 #: an overlap covering less than about 1/this of a shell's samples can go unseen.
 OVERLAP_SAMPLES = 4000
+
+
+#: The sag of each mesh judged (it depends on the mesh alone; a conversion is judged in memory, then on its file).
+_SAGS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _sag_of(mesh) -> np.ndarray:
+    if mesh not in _SAGS:
+        _SAGS[mesh] = triangle_sag(mesh)
+    return _SAGS[mesh]
+
+
+def _file_rules(validity: dict, mesh, sag: np.ndarray, tolerance: float, source: str) -> tuple[Rule, Rule]:
+    """The rules that judge what was built or written: ``solid`` and ``volume``."""
+    closed = mesh.report.boundary_edges == 0
+    return (_solid_rule(validity, not closed, source),
+            _volume_rule(validity, mesh, sag, tolerance, closed and mesh.report.non_manifold_edges == 0))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -466,12 +484,12 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
     tolerance = float(report["tolerance"])
     validity = report["validity"] if validity is None else validity
     labels = np.asarray(labels)
-    closed = mesh.report.boundary_edges == 0
-    sag = triangle_sag(mesh)
-    rules = [_solid_rule(validity, not closed, source), _coverage_rule(report, labels),
+    sag = _sag_of(mesh)
+    solid, volume = _file_rules(validity, mesh, sag, tolerance, source)
+    rules = [solid, _coverage_rule(report, labels),
              overlap if overlap is not None else _overlap_rule(mesh, labels, report, tolerance)]
     rules += _deviation_rules(report, sag, mesh.face_areas, labels, mesh.face_adjacency, tolerance, deviation_error)
-    rules.append(_volume_rule(validity, mesh, sag, tolerance, closed and mesh.report.non_manifold_edges == 0))
+    rules.append(volume)
     verdict = Verdict(tuple(rules), time.perf_counter() - t)
     for r in verdict.failed:
         log.info("rule %s failed: %s", r.rule, r.detail)
@@ -519,10 +537,10 @@ def write_checked(result, path: str | os.PathLike, *, name: str = "recon") -> Ve
     path = write_shape(path, result.brep, name=name, deflection=0.5 * float(result.report["tolerance"]))
     old = result.verdict
     validity = read_back(path)
-    again = judge(result.report, result.mesh, result.labels, validity=validity, source=f"the written file {path.name}",
-                  deviation_error=result.report.get("deviation_error"), overlap=old.rule("overlap"))
-    verdict = old.with_rules(again.rule("solid"), again.rule("volume"))
-    verdict = replace(verdict, seconds=old.seconds + again.seconds)
+    t = time.perf_counter()
+    solid, volume = _file_rules(validity, result.mesh, _sag_of(result.mesh), float(result.report["tolerance"]),
+                                f"the written file {path.name}")
+    verdict = replace(old.with_rules(solid, volume), seconds=old.seconds + time.perf_counter() - t)
     result.report["verdict"] = verdict.to_json()
     return verdict
 
