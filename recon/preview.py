@@ -15,7 +15,7 @@ import numpy as np
 from ._io import atomic_path
 from .errors import ExportError, InputError
 
-__all__ = ["render_parts", "KIND_COLOURS"]
+__all__ = ["render_parts", "render_result", "KIND_COLOURS"]
 
 log = logging.getLogger(__name__)
 
@@ -143,6 +143,17 @@ def render_parts(
         raise ExportError(f"cannot write preview {path}: {err}") from None
     finally:
         plt.close(fig)
+
+
+def render_result(path: str | os.PathLike, result, *, title: str) -> None:
+    """Draw a conversion's B-rep (``recon.convert``'s result) to a PNG, faces coloured by kind: the picture of
+    ``recon convert --preview`` and of ``recon batch``."""
+    from .brep import result_tessellation
+
+    # 2e-3 of the diagonal: finer than a pixel of the picture on any part, coarse enough to draw in a second.
+    deflection = result.report["mesh"]["diagonal"] * 2e-3
+    v, f, lab, kinds = result_tessellation(result.brep, deflection=deflection)
+    render_parts(path, v, f, lab, kinds, title=title)
 
 
 def _depth_at(P, F, xy, cells=256):

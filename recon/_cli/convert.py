@@ -205,12 +205,9 @@ def run(args) -> int:
     if args.report:
         write_json(args.report, result.report)
     if args.preview:
-        from ..brep import result_tessellation
-        from ..preview import render_parts
+        from ..preview import render_result
 
-        diag = result.report["mesh"]["diagonal"]
-        v, f, lab, kinds = result_tessellation(result.brep, deflection=diag * 2e-3)
-        render_parts(args.preview, v, f, lab, kinds, title=f"{result.report['n_faces']} faces")
+        render_result(args.preview, result, title=f"{result.report['n_faces']} faces")
     if not args.quiet:
         print(summary(result.report), file=sys.stderr)
         print(f"wrote {out}", file=sys.stderr)

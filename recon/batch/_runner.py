@@ -54,14 +54,10 @@ def convert_job(job: dict) -> dict:
     write_checked(result, files[0], name=name)  # the verdict judges the file as written, as `recon convert` does
     report = dict(result.report, batch=job["key"])
     if job["preview"]:
-        from ..brep import result_tessellation
-        from ..preview import render_parts
+        from ..preview import render_result
 
-        diag = report["mesh"]["diagonal"]
-        # The same picture as ``recon convert --preview``: the deflection a 2e-3 share of the part's diagonal.
-        v, f, lab, kinds = result_tessellation(result.brep, deflection=diag * 2e-3)
         files.append(stage / (name + PREVIEW_SUFFIX))
-        render_parts(files[-1], v, f, lab, kinds, title=f"{name}: {report['n_faces']} faces")
+        render_result(files[-1], result, title=f"{name}: {report['n_faces']} faces")
     files.append(stage / (name + REPORT_SUFFIX))
     write_json(files[-1], report)
     dev = report.get("deviation") or {}
