@@ -246,7 +246,7 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     the pieces whose own radius lets them beat the best so far are measured). (3) The
     rest — samples of a runaway surface far from the mesh — keep the nearest of 64 pieces: an upper bound,
     flagged. ``trimesh.proximity.closest_point`` instead gathered every triangle whose box meets a ball as
-    large as the nearest-vertex distance: 22 GB for such samples (revolved/open, abc_00000050).
+    large as the nearest-vertex distance: tens of GB for such samples.
 
     Parameters
     ----------
@@ -309,7 +309,7 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     todo = np.flatnonzero(~exact)
     if len(todo):
         # Counted in a tree of larger leaves: a ball of best + reach holds thousands of pieces, whole leaves at a
-        # time (the same counts; 2.8 s → 1.9 s on crank's 77,684 samples).
+        # time (the same counts, a third faster).
         count = cKDTree(centre, leafsize=64).query_ball_point(p[todo], best[todo] + reach, return_length=True)
         order = np.argsort(count, kind="stable")
         todo, count = todo[order], count[order]
@@ -423,8 +423,7 @@ def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | N
     log.info("mesh → shape: %d points, max |d| %.4g", len(v), np.nanmax(np.abs(signed)) if lost < len(v) else np.nan)
 
     # The percentiles are over area-uniform points only (shares of the area, as in `model_deviation`): the
-    # tessellation nodes crowd at edges and on curved faces, and rocker-arm2500's p95 was 0.70 % with 49k nodes
-    # (most on one wild B-spline face) beside the 20k samples, 0.35 % with that face a filling of fewer nodes.
+    # tessellation nodes crowd at edges and on curved faces, so a wild B-spline face's nodes would set the p95.
     # The nodes still count for the maxima, overall and per face: they reach the corners.
     nodes, nodes_face = brep.surface_samples(0, rng=rng)
     area_pts, area_face = brep.surface_samples(DEFAULT_SAMPLES if samples is None else int(samples), rng=rng,

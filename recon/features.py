@@ -331,14 +331,11 @@ def hinge_pairs(faces, n_vertices: int, order=None) -> tuple[np.ndarray, np.ndar
 
 
 #: A hinge (see :func:`_hinge_noise`) at most this share of the diagonal high is flat: its four vertices lie in one
-#: plane up to the file's round-off (text formats with 6 digits: crank and block reach 1e-6 there).
+#: plane up to the file's round-off (a text format with 6 significant digits rounds at 1e-6 of the size).
 EXACT_HINGE = 1e-6
 #: A mesh with at least this share of its hinges flat is noise-free (σ = 0): noise puts no four vertices in one
-#: plane, a CAD export puts every facet of a plane in it. Measured: 0.0–0.2 % of the hinges on every noisy mesh
-#: (the fixtures at σ = 0.05 % and 0.2 % of the diagonal, fandisk-b noisy, rocker-arm), 11 % (crank) to 97 % on
-#: the CAD tessellations, 22–24 % on the coarse revolved and lofted parts, whose lower quartile is curvature (the
-#: chords' sagitta), which the quartile took for noise. Noise of σ ≲ 1e-5 of the diagonal would read as none;
-#: the tolerance's floor (5e-4 of it) is far above such noise.
+#: plane, a CAD export puts every facet of a plane in it (flat shares measured in bench/evidence.md). Noise of
+#: σ ≲ 1e-5 of the diagonal would read as none; the tolerance's floor (5e-4 of it) is far above such noise.
 EXACT_SHARE = 0.02
 
 

@@ -181,7 +181,7 @@ def _one_blas_thread():
     The fit stage's least-squares fits take an SVD of a Jacobian of up to 2,000 × 7 every iteration: OpenBLAS
     splits one that size over its threads, and on a shared machine waking and joining them costs more than the
     SVD (2,000 × 7: 0.1 ms on one thread, 1-3 ms on two with the other core busy). The blocks each thread computes
-    are the ones one thread computes in turn: the same results (crank's and every bench mesh's fits bit for bit).
+    are the ones one thread computes in turn: the same results, bit for bit.
     """
     return threadpool_limits(limits=1, user_api="blas")
 

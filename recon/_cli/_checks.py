@@ -30,9 +30,8 @@ CONFUSION = 1e-7
 
 #: The part sizes (bounding-box diagonal, in the file's units) recon converts. Below MIN_DIAGONAL the finest length
 #: recon works to (the default tolerance's floor, 1e-4 × the diagonal) comes within 100 × CONFUSION, and results
-#: drift (lofted at 7e-3: 13 % of the volume lost; box_fillet at 8e-5: tessellation fails). Above MAX_DIAGONAL a
-#: coordinate's round-off (diagonal × machine epsilon) exceeds CONFUSION (lofted at 7e9: 59 % of the volume lost).
-#: Measured in bench/robustness.md: identical results from 0.07 to 7e8 on every fixture tried.
+#: drift. Above MAX_DIAGONAL a coordinate's round-off (diagonal × machine epsilon) exceeds CONFUSION. Measured in
+#: bench/robustness.md: identical results from 0.07 to 7e8 on every fixture tried, drift outside.
 MIN_DIAGONAL = 100 * CONFUSION / 1e-4
 MAX_DIAGONAL = CONFUSION / float(np.finfo(float).eps)
 

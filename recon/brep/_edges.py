@@ -85,7 +85,7 @@ def shared_wire(refs, edges, context=None):
     must use the same replacement or the two faces stop sharing it. The edges go in as they are
     (``BRep_Builder``): ``BRepBuilderAPI_MakeWire`` joins vertices that lie within each other's tolerance by
     copying edges onto one of them, a change nobody records, so the neighbouring face keeps the old edge
-    (rocker-arm2500: 4 faces with edges of their own, 15 free edges before sewing). Joining them is
+    (free edges before sewing). Joining them is
     ShapeFix's job, recorded in its context.
     """
     builder = BRep_Builder()
@@ -175,7 +175,7 @@ def hand_on(local, shapes, context) -> None:
     ``shapes`` are the wires' vertices and edges as they were before ShapeFix: ShapeFix edits the wires
     themselves (their edges after it are its own), and a vertex it merged with a neighbour must reach the
     other edges that meet there, in faces not built yet, or the next face finds two vertices and merges
-    them again into a third (rocker-arm2500: 64 free edges before sewing, 15 with vertices handed on).
+    them again into a third (free edges before sewing).
     """
     for s in shapes:
         now = local.Apply(s)

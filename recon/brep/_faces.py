@@ -95,8 +95,7 @@ def face_on_surface(model: SurfaceModel, loops: list[np.ndarray], edges, vote: i
 
     With ``both_sides`` the face must pass BRepCheck in both orientations: a wire that BRepTools_WireExplorer
     walks one way but not the other (p-curves jumping by a period, edges ShapeFix added) is NotClosed as soon as
-    ShapeFix_Shell turns the face over to agree with its neighbours (rocker-arm2500: a cone face on a wrong fit,
-    the one invalid face of its solid).
+    ShapeFix_Shell turns the face over to agree with its neighbours, and the solid is invalid for that one face.
     """
     try:
         return _face_on_surface_occ(model, loops, edges, vote, context, precision, both_sides)
@@ -124,8 +123,8 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
         fix.Perform()
         # A wire that crosses itself on the surface is cut into loops and the face split into pieces
         # (ShapeFix_Face's FixLoopWire / FixSplitFace); fix.Face() is one of them, the others are lost with
-        # their edges, which the neighbours still use (crank: 5 faces kept 0.01-50 % of their part's area, 27
-        # free edges). Such a face failed on its surface: its fallbacks follow.
+        # their edges, which the neighbours still use (free edges in the shell). Such a face failed on its
+        # surface: its fallbacks follow.
         pieces = count_shapes(fix.Result(), TopAbs_FACE)
         if pieces > 1:
             raise BrepError(f"face on its surface was split into {pieces} pieces (its boundary crosses itself)")
@@ -141,8 +140,7 @@ def _face_on_surface_occ(model: SurfaceModel, loops: list[np.ndarray], edges, vo
                 raise BrepError(f"face on its surface is not valid ({problems})")
     except Exception:
         # ShapeFix and the edge repair raise the shared edges' and vertices' tolerances in place to fit this
-        # face: one that fails must not leave them raised (rocker-arm: a B-spline face that failed took two
-        # shared edges to 0.10 and 0.15, 60× the tolerance, and the filling bounded by them then failed too)
+        # face: one that fails must not leave them raised, or the fallback face bounded by them fails too
         for shape, tol in zip(before, tolerances):
             set_tolerance(shape, tol)
         raise
@@ -189,8 +187,7 @@ def face_on_copies(model: SurfaceModel, loops: list[np.ndarray], network: CurveN
 
     A face that fails on the shared edges can succeed on the same curves built anew: an earlier neighbour's
     ShapeFix may have split, re-parametrised or re-toleranced a shared edge in a way this face's ShapeFix
-    cannot follow (fandisk-b: a plane bounded by two lines and two circles, valid alone, NotClosed on the
-    shared edges). The copies are the same curves between the same points, so sewing joins the face to its
+    cannot follow (a face valid alone is NotClosed on the shared edges). The copies are the same curves between the same points, so sewing joins the face to its
     neighbours with no gap to bridge.
     """
     builder = BRep_Builder()
@@ -329,7 +326,7 @@ def own_curves_face(model: SurfaceModel, loops: list[np.ndarray], geo: NetworkGe
         fix = face_fixer(model, wires, precision)
         fix.Perform()
         face = fix.Face()
-        # ShapeFix drops a wire it cannot mend (rocker-arm: a cone left with only its hole). It may split edges
+        # ShapeFix drops a wire it cannot mend (a face left with only its hole). It may split edges
         # and join a band's two wires with a seam, but every edge it was given is still there, in pieces.
         kept, given = _boundary_edge_count(face), sum(len(loop) for loop in loops)
         if kept < given:
@@ -366,9 +363,8 @@ def face_in_child(build, args: tuple, what: str, timeout: float):
     (:func:`recon._parallel.isolated`).
 
     Some OCC calls can crash the whole process where no exception can be caught (a segmentation fault inside
-    GeomPlate on noisy boundaries, box_fillet noisy20; inside ShapeFix_Face on a rocker-arm cone's own curves)
-    or spin for minutes (``ProjLib_CompProjectedCurve`` inside ``GeomPlate_BuildPlateSurface``, box_fillet
-    noisy05). In a child the crash or the hang costs one face, not the user's session: the face comes back
+    GeomPlate on noisy boundaries, inside ShapeFix_Face on a cone's own curves) or spin for minutes
+    (``ProjLib_CompProjectedCurve`` inside ``GeomPlate_BuildPlateSurface``). In a child the crash or the hang costs one face, not the user's session: the face comes back
     pickled through the pipe as BREP bytes (:mod:`._serial`). ``build`` raises :class:`BrepError` for a face it
     cannot make.
     """

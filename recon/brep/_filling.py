@@ -139,8 +139,7 @@ def fallback_face_through(loops, edges, points, normals, context, *, precision: 
     if area > 0 and BRepCheck_Analyzer(filled).IsValid():
         return filled, area, FaceStatus.FILLED_SEWN, f"filling surface trimmed by the shared edges failed ({first})"
     try:
-        # Last resort: a face valid one way round still closes the shell, where no face leaves a hole (casting: a
-        # closed solid with this one face invalid, against an open shell with 6 free edges).
+        # Last resort: a face valid one way round still closes the shell, where no face leaves a hole.
         face, area = face_on_surface(filling, loops, edges, fvote, context, precision=precision, both_sides=False)
         return face, area, FaceStatus.FILLED, f"the filling face is valid one way round only ({first})"
     except Exception:  # noqa: BLE001

@@ -60,9 +60,9 @@ def assemble(faces, tolerance, open_mesh, warnings):
             warnings.append("shell had free edges; sewing returned no face")
     fix = ShapeFix_Shell(shell)
     # A shell as built needs orientation only: every face was mended (and checked) on its own already, and
-    # ShapeFix_Shell's own pass of ShapeFix_Face works at OCC's 1e-7 and re-merges what the faces share (on
-    # abc_00000050 it turned a closed manifold shell of 13 valid faces into 4 shells, two of them with 11 free
-    # edges). Sewing re-cuts edges: that pass mends what it leaves (plate_holes/coarse is invalid without it).
+    # ShapeFix_Shell's own pass of ShapeFix_Face works at OCC's 1e-7 and re-merges what the faces share (it can
+    # split a closed manifold shell into several with free edges). Sewing re-cuts edges: that pass mends what it
+    # leaves.
     fix.FixFaceMode = -1 if sewn_shell else 0  # -1: its default
     fix.Perform()
     fixed = fix.Shape()
@@ -136,8 +136,7 @@ def orientation_conflicts(shell) -> int:
 
     In a closed orientable shell every edge is used once forward and once reversed. Faces are built oriented by
     the mesh normals, so a conflict is not a face the wrong way round but an edge sewing joined wrongly: a short
-    edge cut where the sewing tolerance spans more than it (rocker-arm: one edge of 0.1 × the tolerance at 10×
-    it, along which ShapeFix_Shell split the closed shell in two).
+    edge cut where the sewing tolerance spans more than it, along which ShapeFix_Shell splits the closed shell.
     """
     emap = TopTools_IndexedMapOfShape()
     uses: dict[int, list] = {}
@@ -182,8 +181,7 @@ def whole_fixed(shape, tolerance: float, warnings):
     """A closed solid BRepCheck refuses, after ShapeFix_Shape on the whole of it; ``shape`` if that is no better.
 
     The last resort, kept only when the result is one valid closed solid with every face: ShapeFix_Shape mends
-    the faces and their shared edges together, where :func:`mend_faces` mends each face alone (rocker-arm after
-    its small edges were dropped: two faces NotClosed / InvalidCurveOnSurface, valid after this, volume −0.1 %).
+    the faces and their shared edges together, where :func:`mend_faces` mends each face alone.
     """
     from OCP.ShapeFix import ShapeFix_Shape
 
@@ -204,8 +202,7 @@ def mend_faces(shape, tolerance: float, warnings) -> None:
     ShapeFix_Wire's self-intersection fix.
 
     Every face was valid when it was built; sewing at a tolerance above the edges' own re-cuts and re-tolerances
-    them (rocker-arm: one valid B-spline face self-intersecting after sewing at 10× the tolerance, the one
-    fault of a closed solid of 112 faces; valid after this, volume changed by 7e-6).
+    them (a valid B-spline face can self-intersect after sewing at 10× the tolerance).
     """
     from OCP.ShapeFix import ShapeFix_Wire
 

@@ -241,7 +241,7 @@ def _penalty(nu: int, nv: int, periodic_u: bool):
     nu × nv control grid (step 3 of the module notes).
 
     It depends on the grid alone, and a fit solves on one grid four times (the parameter corrections) and most
-    fits on the same few grids: building it took two thirds of the B-spline solves (rocker-arm2500). Callers
+    fits on the same few grids: building it was most of a B-spline solve. Callers
     must not modify the matrices in place.
     """
     if periodic_u:
@@ -367,8 +367,8 @@ def fit_bspline_surface(
             break  # the first parametrisation that fits is kept: the second costs a whole fit
     log.debug("bspline (%s parametrisation): deviation %s", how, best.deviation)
     if periodic and tolerance is not None and not best.ok and not best.deviation["rms"] <= BAND_RMS * tolerance:
-        # not one smooth band (pocket/clean: its floor's four fillets meet at sharp corners; RMS 68× the tolerance,
-        # 31 mm off on 3 mm fillets): a surface this far off would only bound a face far from the mesh
+        # not one smooth band (e.g. fillets meeting at sharp corners): a surface this far off would only bound a
+        # face far from the mesh
         return SurfaceFit("bspline", {}, deviation_stats(np.empty(0)), len(pts), ok=False,
                           reason=f"bspline: no periodic B-spline fits this band (RMS {best.deviation['rms']:.3g} "
                                  f"> {BAND_RMS:g} × tolerance {tolerance:.3g})")

@@ -67,8 +67,8 @@ def fit_surface(
     Acceptance is :func:`recon.fit.within_tolerance`: 99th percentile of |d| ≤ tolerance and max ≤ 2·tolerance.
 
     Within tolerance is not yet explained: a simpler type can pass with a *systematic* misfit while a later
-    one leaves only the noise (revolved noisy20: a sphere holds the cone of half-angle 37° within tolerance
-    with a robust residual of 2.2σ, the cone leaves 1.0σ; the band used to become spheres). So when the
+    one leaves only the noise (a sphere can hold a steep cone band within tolerance at a residual of twice
+    the noise, where the cone leaves the noise alone). So when the
     points' noise ``sigma`` is given and the first accepted type's residual is above it, the later analytic
     types are fitted too and the one of least Bayesian information criterion wins (:func:`_least_complex`);
     at the noise level nothing can do better and the first type stands. Without ``sigma`` (a noise-free mesh,

@@ -267,7 +267,7 @@ def _deduplicated(F: np.ndarray, ok: np.ndarray, n_vertices: int) -> tuple[np.nd
     """Triangles to keep among ``F[ok]`` when several share a vertex set.
 
     Copies with the same orientation are duplicates: keep the first. A copy in each orientation is a
-    zero-thickness double wall (a fin, a leftover of hole filling or a boolean; ``crank.off`` has twelve):
+    zero-thickness double wall (a fin, a leftover of hole filling or a boolean):
     opposite copies cancel in pairs, as oriented triangles of a 2-chain do, unless cancelling would leave
     an edge with a single triangle (then the pair is more likely a flipped copy: keep the first).
 

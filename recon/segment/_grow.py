@@ -38,7 +38,7 @@ def grow_faces(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.ndarra
 
     The decomposition draws its parts' borders before any face is fitted whole, and under noise it draws them
     badly: a part can hold strips of its neighbours (a chamfer with strips of both planes, which a cylinder
-    then covers within tolerance), and a face can lie in pieces (revolved noisy20's cone over eleven parts).
+    then covers within tolerance), and a face can lie in pieces over many parts.
     With every face fitted, a triangle *lies on* a face's analytic surface when its vertices are within
     tolerance of it and its normal within ``GROW_ANGLE_DEG`` of the surface's. A boundary triangle
     moves to a neighbouring face it lies on
@@ -51,8 +51,7 @@ def grow_faces(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.ndarra
       round-off), a surface misfits when its residual is a share of the tolerance (``EXACT_MISFIT``).
 
     A surface that fits at the noise level keeps what it holds: near a tangent seam a neighbour's extension
-    holds a face's rim as closely as the noise allows (box_fillet noisy20: the fillets' cylinders took the
-    corner spheres whole). Moves are made ring by ring over the new borders with the surfaces fixed; a
+    holds a face's rim as closely as the noise allows (a fillet's cylinder can take a corner sphere whole). Moves are made ring by ring over the new borders with the surfaces fixed; a
     triangle only moves to a surface that holds it closer than where it was, so it ends. A face is taken
     whole or left with enough vertices for a surface (``MIN_PART_VERTICES``) — or as a planar face of its own
     that no surface around it holds (:func:`recon.segment._split.planar_pieces`: a corner triangle a compromise
@@ -67,9 +66,8 @@ def dissolve_explained(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> n
     """:func:`grow_faces` where only the faces every triangle of which lies on a neighbouring face's surface give
     triangles away, whatever their own surface, and receive none.
 
-    Such a face is pieces of its neighbours that a surface of its own also holds within the noise (revolved
-    noisy20: cone pieces with a rim of the cylinder below, whose own cones fit them at 1.1-1.4 σ, which no merge
-    can take in: their union with the cone or the cylinder fits neither). Returns ``labels`` itself when nothing
+    Such a face is pieces of its neighbours that a surface of its own also holds within the noise, which no
+    merge can take in (their union with either neighbour fits neither). Returns ``labels`` itself when nothing
     moved.
     """
     return _grow(labels, fits, ctx, dissolve=True)
@@ -81,9 +79,8 @@ def dissolve_misfits(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.
     A face whose best surface leaves its points farther than :data:`recon.fit._types.ACCEPT_MAX_FACTOR` ×
     the tolerance on average (RMS: farther than any accepted fit's largest deviation) is not a face a designer
     drew but a decomposition failure: on a CAD tessellation of long slivers, a fan of triangles that alternate
-    with a neighbour's (crank: a flat bottom with eight teeth of the wall beside it, a torus 30× out of
-    tolerance; a strip of slivers between two tori, a B-spline 190× out). On crank no face was built on such a
-    surface (the filling failed as well), and the shell had a hole there. So
+    with a neighbour's. No face builds on such a surface (nor a filling in its place), and the shell has a hole
+    there. So
 
     - its triangles move, ring by ring, to the neighbouring faces whose analytic surfaces they lie on
       (:func:`grow_faces` with these faces as the only givers; a receiver must still fit its own type), when

@@ -39,12 +39,11 @@ def merge_same_surface(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> n
     The decomposition can leave a face in two pieces (a sliver patch beside its face, a face cut by a
     short feature); two analytic neighbours whose union one analytic surface fits are one face. The pieces
     need not have the type of the whole: a small piece of a cone fits a plane or a cylinder within tolerance
-    (revolved noisy20's cone lay in cone, cylinder and plane pieces). A union that its surface holds only as a
+    (a noisy cone can lie in cone, cylinder and plane pieces). A union that its surface holds only as a
     compromise — a robust residual above :data:`recon.fit._select.MISFIT_SCALE` × the noise, as
     :func:`recon.segment.grow_faces` judges a face — is two faces, not one: under noise a small piece that
     straddles two faces fits some surface within tolerance, and its union with another such piece does too
-    (box_chamfer noisy20: a chamfer's plane piece and a cylinder across the chamfer and both its planes,
-    σ̂ = 1.86 σ; revolved noisy20: two pieces across the cone and the cylinder above it, 1.43 σ), and the grown
+    (a chamfer's plane piece and a cylinder across the chamfer and both its planes), and the grown
     faces then keep that compromise. Pairs are tried largest shared boundary first, and after every merge the
     pairs are tried again. Returns ``labels`` itself when nothing merged.
     """
@@ -119,11 +118,10 @@ def probe_fits(tris: np.ndarray, upto: str, ctx: SegmentContext) -> bool:
 def merge_round_bands(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.ndarray:
     """Merge neighbouring cylinder (and sphere) faces that are bands of one doubly curved surface into one face.
 
-    A coarse tessellation of a round end (crank: two ball ends of radius 0.052 in long slivers) decomposes into
-    bands that each fit a cylinder within tolerance, of one radius, their axes crossing at about 50°, and a
-    sphere of that radius beside them: no analytic surface holds their union (a sphere: RMS 2×, max 5× the
-    tolerance; :func:`merge_same_surface` tries the pieces' own type only), a B-spline does (max 0.29× and
-    0.38×). Kept apart, the edges between them are where two cylinders cross, a wandering curve across bands
+    A coarse tessellation of a round end in long slivers decomposes into bands that each fit a cylinder within
+    tolerance, of one radius, their axes crossing, and a sphere of that radius beside them: no analytic surface
+    holds their union within tolerance (:func:`merge_same_surface` tries the pieces' own type only), a B-spline
+    does. Kept apart, the edges between them are where two cylinders cross, a wandering curve across bands
     0.02 wide, and the faces' boundaries crossed themselves on their surfaces (ShapeFix split them). Groups of
     three or more such faces are merged, only when the union's own fit (any type) is within tolerance.
     Returns ``labels`` itself when nothing merged.

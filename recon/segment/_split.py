@@ -145,13 +145,12 @@ def trim_to_surface(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.n
 
     Under noise a face can take in slivers of its neighbours (a chamfer's edge on a large plane): one plane
     no longer fits it, a B-spline does, and the plane becomes a free-form face — or a curved surface bends
-    to take the slivers in within tolerance (box_chamfer noisy20: chamfers and a box face as cones and
-    cylinders). When one analytic region grown inside the face (for a curved face, a plane region;
+    to take the slivers in within tolerance (a chamfer and a box face as cones and cylinders). When one analytic region grown inside the face (for a curved face, a plane region;
     :func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of its area, the rest goes
     to the neighbouring face whose surface passes nearest; the trim is kept only if the face then fits an
     analytic surface (for a curved face, a plane) and every face that received triangles still fits its own
     type within tolerance. A piece of the rest that is a planar face of its own (:func:`planar_pieces`: a
-    chamfered box's corner triangle on the end of a chamfer, box_chamfer noisy20) becomes a face instead.
+    chamfered box's corner triangle on the end of a chamfer) becomes a face instead.
     Returns ``labels`` itself when nothing was trimmed.
     """
     mesh, pairs = ctx.mesh, ctx.pairs
@@ -195,8 +194,8 @@ def trim_to_surface(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.n
             continue
         new.update(receivers_fits(trial, receivers, fits, ctx))
         if not all(new[q].ok and new[q].type == fits[q].type for q in receivers):
-            # the slivers given back must not change what their face is (box_fillet noisy20: a fillet's
-            # cylinder became a cone, whose face then failed and cost 2 % of the volume) — but the rest may be
+            # the slivers given back must not change what their face is (a changed type can fail to build
+            # and cost volume) — but the rest may be
             # a face of its own that a neighbour out of tolerance holds the other half of
             across = rest_across_misfits(out, p, rest, fits, ctx, simpler)
             if across is not None:
@@ -232,10 +231,9 @@ def rest_across_misfits(labels: np.ndarray, p: int, rest: np.ndarray, fits: dict
     together with the triangles of neighbouring faces out of tolerance that lie on the same analytic surface,
     or None.
 
-    On a CAD tessellation of long slivers a face can lie in two parts whose slivers alternate: crank's web side
-    (a plane) is 8 slivers of the face beside it (patch_83, a plane but for them: a B-spline 1.25× out of
-    tolerance) and 12 of another (patch_89, a torus 1.6× out). Neither keeps them within tolerance and neither
-    can take the other's, so trimming gave up. The rest's own surface (fitted to it alone) is grown over the
+    On a CAD tessellation of long slivers a face can lie in two parts whose slivers alternate with its
+    neighbours'; neither neighbour keeps them within tolerance and neither can take the other's, so trimming
+    gives up. The rest's own surface (fitted to it alone) is grown over the
     triangles of the faces around it that are out of tolerance, ring by ring, while they lie on it (vertices
     within ``tolerance``, normals within :data:`GROW_ANGLE_DEG`). Kept only when the new face has a surface's
     worth of vertices (:data:`MIN_PART_VERTICES`) and fits an analytic surface within tolerance, face ``p``
