@@ -23,9 +23,9 @@ from typing import Callable
 
 import numpy as np
 
-from ._parallel import shared_map
-from .errors import InputError
-from .mesh._topology import stable_argsort, unique_rows
+from .._parallel import shared_map
+from ..errors import InputError
+from ..mesh._topology import stable_argsort, unique_rows
 
 __all__ = [
     "CurveNetwork",
