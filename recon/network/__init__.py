@@ -11,18 +11,9 @@ Three steps, one module each:
 numpy/scipy only; the surfaces come in as projection callables.
 """
 
-from ._graph import (
-    OUTSIDE,
-    CurveNetwork,
-    EdgeCurve,
-    NetworkGeometry,
-    curve_network,
-    fit_edge_curve,
-    meeting_point,
-    network_geometry,
-    polyline_curve,
-)
-
+from ._edge_fit import EdgeCurve, fit_edge_curve, polyline_curve
+from ._graph import OUTSIDE, CurveNetwork, curve_network
+from ._placement import NetworkGeometry, meeting_point, network_geometry
 __all__ = [
     "CurveNetwork",
     "EdgeCurve",
