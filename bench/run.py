@@ -1,6 +1,6 @@
 """The project benchmark: the numbers users and we decide by, measured in one command.
 
-``python -m recon.bench [--cases fixtures,meshes,scaling,freecad] [--out DIR] [--quick]`` writes
+``python -m bench.run [--cases fixtures,meshes,scaling,freecad] [--out DIR] [--quick]`` writes
 ``DIR/bench.json`` (every row, every figure) and ``DIR/bench.md`` (the tables; ``bench/RESULTS.md`` is a committed
 copy of one full run and the README shows its headline rows).
 
@@ -50,8 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import atomic_path, write_json
-from .errors import InputError
+from recon._io import atomic_path, write_json
+from recon.errors import InputError
 
 __all__ = [
     "COLUMNS",
@@ -185,7 +185,7 @@ class BenchResult:
 
 def fixture_cases(*, root=None, timeout: float | None = None) -> list[Case]:
     """One case per committed fixture (part × variant)."""
-    from .fixtures import list_fixtures
+    from recon.fixtures import list_fixtures
 
     t = TIMEOUTS["fixtures"] if timeout is None else timeout
     spec_root = None if root is None else str(root)
@@ -237,7 +237,7 @@ def _triangle_count(path: Path) -> int:
             n = int.from_bytes(head[80:84], "little")
             if 84 + 50 * n == path.stat().st_size:
                 return n
-    from .mesh import read_triangles
+    from recon.mesh import read_triangles
 
     return int(len(read_triangles(path)[1]))
 
@@ -247,8 +247,8 @@ def freecad_cases(*, quick: bool = False, mesh_dir=None, fixture_root=None, time
 
     Empty where FreeCAD is not installed.
     """
-    from ._freecad import freecadcmd
-    from .fixtures import FIXTURE_DIR, list_fixtures
+    from recon._freecad import freecadcmd
+    from recon.fixtures import FIXTURE_DIR, list_fixtures
 
     if freecadcmd() is None:
         log.warning("FreeCAD is not installed: no freecad cases")
@@ -308,7 +308,7 @@ def type_agreement(labels, true_labels, areas, our_types, true_types) -> float:
     float
         In [0, 1]; NaN when no triangle has a known true face.
     """
-    from .decompose import face_recovery
+    from recon.decompose import face_recovery
 
     rec = face_recovery(labels, true_labels, areas)
     if len(rec.true_ids) == 0:
@@ -333,6 +333,13 @@ def loglog_slope(x, y) -> float:
 
 # ----------------------------------------------------------------------------------------------------------------
 # Running a case in a subprocess
+
+
+def _child_env() -> dict:
+    """The environment of a subprocess of the benchmark: this checkout first on the path, so that it finds ``bench``
+    (it runs in a temporary folder) and measures the same ``recon`` as the process that started it."""
+    path = os.environ.get("PYTHONPATH")
+    return {**os.environ, "PYTHONPATH": str(REPO) + (os.pathsep + path if path else "")}
 
 
 def _one_line(text: str, limit: int = 300) -> str:
@@ -375,8 +382,9 @@ def run_case(case: Case, *, timeout: float | None = None, cwd=None) -> dict:
         t0 = time.perf_counter()
         with open(err_path, "wb") as err:
             proc = subprocess.Popen(
-                [sys.executable, "-m", "recon.bench", "--worker", str(spec_path), str(result_path)],
+                [sys.executable, "-m", "bench.run", "--worker", str(spec_path), str(result_path)],
                 stdin=subprocess.DEVNULL, stdout=err, stderr=err, cwd=str(cwd or tmp), start_new_session=True,
+                env=_child_env(),
             )
             while True:
                 pid, status, usage = os.wait4(proc.pid, os.WNOHANG)
@@ -574,8 +582,8 @@ def unit_factor(mesh_diagonal: float, step_diagonal: float) -> float:
 def _truth_from_step(vertices, faces, step_path) -> tuple:
     """True face per triangle for a mesh with a true STEP but no labels: the face nearest the centroid, with
     the mesh taken into the STEP's units first. Returns the labels, the true face types and that factor."""
-    from .brep._distance import BrepDistance
-    from .brep._step_read import read_step
+    from recon.brep._distance import BrepDistance
+    from recon.brep._step_read import read_step
 
     shape, _ = read_step(step_path)
     bd = BrepDistance(getattr(shape, "wrapped", shape))
@@ -587,12 +595,12 @@ def _truth_from_step(vertices, faces, step_path) -> tuple:
 
 
 def _measure_convert(spec: dict, row: dict) -> dict:
-    from .deviation import deviation, model_deviation
-    from .pipeline import convert
+    from recon.deviation import deviation, model_deviation
+    from recon.pipeline import convert
 
     true_labels_input = true_types = true_step = None
     if spec["kind"] == "fixture":
-        from .fixtures import load_fixture
+        from recon.fixtures import load_fixture
 
         fx = load_fixture(spec["part"], spec["variant"], root=spec.get("root"))
         path, true_labels_input, true_types, true_step = fx.stl_path, fx.labels, fx.face_types, fx.step_path
@@ -603,7 +611,7 @@ def _measure_convert(spec: dict, row: dict) -> dict:
         if not path.exists():
             _make_scaling_mesh(int(spec["triangles"]))
         true_labels_input = np.load(path.with_suffix(".labels.npy")).astype(np.int64)
-        from .fixtures import FIXTURE_DIR
+        from recon.fixtures import FIXTURE_DIR
 
         fx_meta = json.loads((Path(FIXTURE_DIR) / f"{SCALING_PART}.json").read_text())
         true_types = tuple(f["type"] for f in fx_meta["faces"])  # the scaling meshes are labelled like it
@@ -620,7 +628,7 @@ def _measure_convert(spec: dict, row: dict) -> dict:
     # (recon/_freecad/fc_route.py). Counted, it was 1.2 s of the 100k part's 2.9 s (OCP 0.9 s, trimesh 0.3 s).
     import trimesh  # noqa: F401
 
-    from . import brep  # noqa: F401
+    import recon.brep  # noqa: F401
 
     memory = _StageMemory()
     current = {"stage": "load"}
@@ -674,7 +682,7 @@ def _measure_convert(spec: dict, row: dict) -> dict:
         row["error"] = _one_line(f"not a valid {row['expected']}: " + "; ".join(bad))
     notes = []
 
-    from .brep import write_shape
+    from recon.brep import write_shape
 
     memory.begin("export")
     t = time.perf_counter()
@@ -708,7 +716,7 @@ def _measure_convert(spec: dict, row: dict) -> dict:
     else:
         true_labels = None
     if true_labels is not None:
-        from .decompose import face_recovery
+        from recon.decompose import face_recovery
 
         areas = conv.mesh.face_areas
         rec = face_recovery(conv.labels, true_labels, areas)
@@ -738,7 +746,7 @@ def _measure_convert(spec: dict, row: dict) -> dict:
 
 
 def _measure_freecad(spec: dict, row: dict) -> dict:
-    from ._freecad import freecad_route
+    from recon._freecad import freecad_route
 
     path = Path(spec["path"])
     if not path.exists() and spec.get("triangles"):
@@ -780,8 +788,8 @@ def _load_make_fixtures():
 
 def _make_scaling_mesh(triangles: int) -> None:
     """Make (and cache) a scaling mesh in a child process, so its memory and time stay out of the case's figures."""
-    subprocess.run([sys.executable, "-m", "recon.bench", "--make-scaling", str(triangles)],
-                   check=True, stdin=subprocess.DEVNULL, capture_output=True)
+    subprocess.run([sys.executable, "-m", "bench.run", "--make-scaling", str(triangles)],
+                   check=True, stdin=subprocess.DEVNULL, capture_output=True, env=_child_env())
 
 
 def _scaling_mesh_path(triangles: int, *, folder: Path = SCALING_DIR) -> Path:
@@ -1019,7 +1027,7 @@ def render_markdown(rows, meta: dict | None = None) -> str:
     L.append(
         f"Run {meta.get('date', '?')} on commit `{meta.get('commit', '?')}`, {meta.get('cpu', '?')} "
         f"({meta.get('cores', '?')} cores, shared: timings are noisy), Python {meta.get('python', '?')}. "
-        f"Command: `{meta.get('command', 'python -m recon.bench')}`. Every case ran in its own subprocess "
+        f"Command: `{meta.get('command', 'python -m bench.run')}`. Every case ran in its own subprocess "
         "with a time limit. Deviations are % of the mesh's bounding-box diagonal."
     )
     L.append("")
@@ -1199,7 +1207,7 @@ def _cases_for(groups, *, quick: bool) -> list[Case]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m recon.bench", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m bench.run", description=__doc__.splitlines()[0])
     parser.add_argument("--cases", default="fixtures,meshes,freecad",
                         help=f"comma-separated groups among {','.join(GROUPS)} (default: fixtures,meshes,freecad; "
                         "scaling takes long)")
@@ -1228,7 +1236,7 @@ def main(argv=None) -> int:
     cases = _cases_for(groups, quick=args.quick)
     if args.only:
         cases = [c for c in cases if args.only in c.name]
-    command = "python -m recon.bench " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = "python -m bench.run " + " ".join(argv if argv is not None else sys.argv[1:])
 
     def progress(i, n, row):
         print(f"[{i + 1}/{n}] {row['case']}: {row['status']}"
