@@ -332,7 +332,7 @@ def test_chamfered_box_under_heavy_noise_is_planes(chamfer_noisy20):
     Grown back over their borders and cut back to the planes inside them, the faces are planes again: the
     issue's target of 90 % of the true area in faces of its type (all planes), and at most the truth's 26
     faces + 15 %."""
-    from bench.run import type_agreement
+    from bench.measure import type_agreement
 
     fx, result = chamfer_noisy20
     assert result.brep.validity.ok, result.report["validity"]
