@@ -8,13 +8,17 @@ Prints the total wall time (best of the repeats), per-type time and how many typ
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 
-from recon.fit import fit_surface
-from recon.fit._synthetic import (
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script: the repository root, for bench.synthetic
+
+from recon.fit import fit_surface  # noqa: E402
+from bench.synthetic import (  # noqa: E402
     add_noise,
     random_rotation,
     sample_cone,

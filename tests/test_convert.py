@@ -133,7 +133,7 @@ def test_lofted_fixture_is_two_planes_and_one_closed_bspline(moved):
     axis, bounded by its two loops; with the two planes it closes into a valid solid of the true 3 faces. The
     same after a rigid motion and a permutation of the triangles: the axis comes from the loops, not the frame."""
     from recon import convert
-    from recon.fit._synthetic import random_rotation
+    from bench.synthetic import random_rotation
     from recon.fixtures import load_fixture
 
     fx = load_fixture("lofted", "clean")
