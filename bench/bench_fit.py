@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script: the repository root, for bench.synthetic
+# run as a script (python bench/bench_fit.py): the repository root on the path, for bench.synthetic
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from recon.fit import fit_surface  # noqa: E402
 from bench.synthetic import (  # noqa: E402

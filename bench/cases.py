@@ -101,7 +101,7 @@ COLUMNS = {
 
 @dataclass(frozen=True)
 class Case:
-    """One benchmark case: what to measure, run in a subprocess by :func:`run_case`.
+    """One benchmark case: what to measure, run in a subprocess by :func:`bench.run.run_case`.
 
     Attributes
     ----------
