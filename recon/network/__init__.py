@@ -14,6 +14,7 @@ numpy/scipy only; the surfaces come in as projection callables.
 from ._edge_fit import EdgeCurve, fit_edge_curve, polyline_curve
 from ._graph import OUTSIDE, CurveNetwork, curve_network
 from ._placement import NetworkGeometry, meeting_point, network_geometry
+
 __all__ = [
     "CurveNetwork",
     "EdgeCurve",
