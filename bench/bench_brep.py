@@ -73,7 +73,7 @@ def true_surfaces(step_path):
 def run_one(part, variant, source, repeat):
     """One row as a dict (runs in a child process)."""
     from recon.brep import build_solid
-    from recon.curves import curve_network
+    from recon.network import curve_network
     from recon.deviation import deviation
     from recon.fixtures import load_fixture
 

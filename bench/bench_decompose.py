@@ -17,10 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from recon.decompose import decompose, face_recovery
-from recon.decompose._synthetic import rounded_box
-
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))  # run as a script: the repository root, for bench.synthetic
+
+from bench.synthetic import rounded_box  # noqa: E402
+from recon.decompose import decompose, face_recovery  # noqa: E402
+
 OUT = HERE / "out"
 MESHES = HERE.parent.parent / "shared" / "meshes"
 REAL = ["fandisk.off", "block.off", "casting.off", "joint.off", "rocker-arm.off", "crank.off", "abc_00000050.stl"]
@@ -165,13 +167,13 @@ def scaling(quick: bool, repeat: int = 2):
         if "crank" in label and not (MESHES / "crank.off").exists():
             continue
         code = (
-            "import sys,time,resource;sys.path.insert(0,%r);from bench_decompose import subdivide,_mesh;"
-            "from recon.decompose._synthetic import rounded_box;from recon.decompose import decompose;"
+            "import sys,time,resource;sys.path.insert(0,%r);from bench.bench_decompose import subdivide,_mesh;"
+            "from bench.synthetic import rounded_box;from recon.decompose import decompose;"
             "V,F=%s;ts=[];"
             "exec('for _ in range(%d):\\n t=time.perf_counter();d=decompose((V,F));ts.append(time.perf_counter()-t)');"
             "c=d.counts();print(len(F),round(min(ts),2),resource.getrusage(resource.RUSAGE_SELF).ru_maxrss//1024,"
             "c['patch'],c['junction'],c['linear'],c['terminal'])"
-        ) % (str(HERE), expr, 1 if label in LARGE else repeat)
+        ) % (str(HERE.parent), expr, 1 if label in LARGE else repeat)
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
         if out.returncode or not out.stdout.strip():
             say(f"| {label} | failed: {out.stderr.strip()[-200:]} | | | | | | | |")

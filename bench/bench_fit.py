@@ -8,13 +8,18 @@ Prints the total wall time (best of the repeats), per-type time and how many typ
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from collections import defaultdict
+from pathlib import Path
 
 import numpy as np
 
-from recon.fit import fit_surface
-from recon.fit._synthetic import (
+# run as a script (python bench/bench_fit.py): the repository root on the path, for bench.synthetic
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from recon.fit import fit_surface  # noqa: E402
+from bench.synthetic import (  # noqa: E402
     add_noise,
     random_rotation,
     sample_cone,

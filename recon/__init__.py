@@ -11,7 +11,7 @@ import types
 
 #: Public name -> the submodule that defines it.
 _SOURCES = {
-    **dict.fromkeys(["CurveNetwork", "curve_network"], ".curves"),
+    **dict.fromkeys(["CurveNetwork", "curve_network"], ".network"),
     **dict.fromkeys(["Decomposition", "decompose", "face_recovery"], ".decompose"),
     **dict.fromkeys(["DeviationReport", "DeviationStats", "FaceDeviation", "deviation", "plot_deviation"],
                     ".deviation"),

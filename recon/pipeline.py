@@ -107,7 +107,7 @@ def convert(
     Conversion
     """
     from .brep import build_solid  # the CAD kernel loads only when a B-rep is wanted
-    from .curves import curve_network
+    from .network import curve_network
 
     def step(name, frac):
         if progress is not None:

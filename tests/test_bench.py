@@ -5,9 +5,10 @@ import json
 import numpy as np
 import pytest
 
-from recon.bench import (
-    COLUMNS, STAGES, Case, fixture_cases, loglog_slope, part_speed_line, render_markdown, run_benchmark, type_agreement,
-)
+from bench.cases import COLUMNS, STAGES, Case, fixture_cases
+from bench.measure import type_agreement
+from bench.report import loglog_slope, part_speed_line, render_markdown
+from bench.run import run_benchmark
 from recon.fixtures import load_fixture
 
 
@@ -82,7 +83,7 @@ def test_run_writes_both_files_and_failures_become_rows(tmp_path):
 
 
 def test_unit_factor_takes_a_mesh_into_its_step_units():
-    from recon.bench import unit_factor
+    from bench.measure import unit_factor
 
     # abc_00000050: STL in metres (diagonal 0.135), STEP in millimetres (135).
     assert unit_factor(0.1349, 134.9) == 1000.0

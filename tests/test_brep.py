@@ -19,7 +19,7 @@ from recon.brep import (
     shape_validity,
     write_shape,
 )
-from recon.curves import curve_network
+from recon.network import curve_network
 from recon.errors import InputError
 
 
@@ -643,7 +643,7 @@ def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
     # As above with the placed corners refused too (as where they cross): the last resort is each face on the
     # mesh's own boundary in its surface's parameters, and sewing closes the three into one valid solid.
     from recon.brep import _faces
-    from recon.curves import CurveNetwork
+    from recon.network import CurveNetwork
     from recon.errors import BrepError
 
     own_curves_face = _faces.own_curves_face

@@ -133,7 +133,7 @@ def test_lofted_fixture_is_two_planes_and_one_closed_bspline(moved):
     axis, bounded by its two loops; with the two planes it closes into a valid solid of the true 3 faces. The
     same after a rigid motion and a permutation of the triangles: the axis comes from the loops, not the frame."""
     from recon import convert
-    from recon.fit._synthetic import random_rotation
+    from bench.synthetic import random_rotation
     from recon.fixtures import load_fixture
 
     fx = load_fixture("lofted", "clean")
@@ -332,7 +332,7 @@ def test_chamfered_box_under_heavy_noise_is_planes(chamfer_noisy20):
     Grown back over their borders and cut back to the planes inside them, the faces are planes again: the
     issue's target of 90 % of the true area in faces of its type (all planes), and at most the truth's 26
     faces + 15 %."""
-    from recon.bench import type_agreement
+    from bench.measure import type_agreement
 
     fx, result = chamfer_noisy20
     assert result.brep.validity.ok, result.report["validity"]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from recon.curves import OUTSIDE, curve_network, fit_edge_curve, meeting_point, network_geometry
+from recon.network import OUTSIDE, curve_network, fit_edge_curve, meeting_point, network_geometry
 from recon.errors import InputError
 
 
@@ -285,7 +285,7 @@ def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
     chord does. The edge is the polyline: its points, nothing the surfaces or the mesh do not show."""
     from scipy.interpolate import BSpline
 
-    from recon.curves import STRAY_FACTOR
+    from recon.network._placement import STRAY_FACTOR
 
     tol = 1e-3
     bulge = 11.6 * tol
@@ -327,7 +327,7 @@ def test_a_chord_is_not_refined_onto_another_stretch_of_its_edge():
     lands on the circle's nearest point — on the arc the edge has already run along, half a radius away, within
     the half-chord a refinement may move. Inserted, the polyline went back over itself and the plane's face
     crossed itself. The chord stays a chord; the arc's own chords are refined."""
-    from recon.curves import _refined
+    from recon.network._placement import _refined
 
     h = 2.0
     R = np.hypot(1.0, h)  # the sphere about (0, 0, h) through the unit circle in z = 0

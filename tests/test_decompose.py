@@ -8,7 +8,7 @@ import pytest
 from recon.cli import main
 from recon.decompose import decompose, face_recovery
 from recon.decompose._regions import TOL_FLOOR
-from recon.decompose._synthetic import rounded_box
+from bench.synthetic import rounded_box
 
 
 def _areas(V, F):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from recon.decompose._synthetic import rounded_box
+from bench.synthetic import rounded_box
 from recon.decompose._topology import topology, unique
 from recon.features import FaceGeometry, _laplacian, _system, hinge_pairs, heat_smooth
 from recon._array import col_means, col_sums, extent, row_norms, row_sums

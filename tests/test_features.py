@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from recon.decompose._synthetic import rounded_box
+from bench.synthetic import rounded_box
 from recon.errors import MeshError
 from recon.features import feature_field
 

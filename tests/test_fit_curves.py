@@ -13,7 +13,7 @@ import pytest
 from recon.errors import FitError
 from recon.fit import fit_bspline_curve, fit_circle, fit_curve, fit_line
 from recon._array import perpendicular_frame
-from recon.fit._synthetic import add_noise, random_rotation
+from bench.synthetic import add_noise, random_rotation
 
 SIGMA = 0.01
 TOL = 4 * SIGMA

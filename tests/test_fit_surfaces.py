@@ -36,7 +36,7 @@ from recon.fit import (
 )
 from recon.fit._bspline_surface import basis_functions
 from recon._array import perpendicular_frame
-from recon.fit._synthetic import (
+from bench.synthetic import (
     add_noise,
     random_rotation,
     sample_cone,

@@ -195,7 +195,7 @@ sys.path.insert(0, {tests!r})
 import numpy as np, trimesh
 from test_brep import _axis_labels, _fits_by_label
 from recon.brep import _filling
-from recon.curves import curve_network
+from recon.network import curve_network
 from recon.brep import build_solid
 from recon.fit import SurfaceFit
 

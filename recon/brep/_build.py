@@ -22,7 +22,7 @@ from OCP.TopAbs import TopAbs_FACE, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS
 
-from ..curves import OUTSIDE, CurveNetwork, NetworkGeometry, network_geometry
+from ..network import OUTSIDE, CurveNetwork, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
 from ._edges import fix_edges, shared_topology
 from ._faces import near_enough, orientation_vote
@@ -46,7 +46,7 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     Parameters
     ----------
     network : CurveNetwork
-        From :func:`recon.curves.curve_network`.
+        From :func:`recon.network.curve_network`.
     surfaces : mapping part id → surface
         ``Geom_Surface`` (e.g. a true CAD surface), a ``recon.fit`` result (``.type``, ``.params``) or a
         :class:`SurfaceModel`; a sequence indexed by part id works too.
@@ -139,7 +139,7 @@ def _fit_ok(surfaces: Mapping, models: Mapping, part: int) -> bool:
 
 def _placed_network(network: CurveNetwork, surfaces: Mapping, models: Mapping, tolerance: float,
                     jobs: int | None) -> NetworkGeometry:
-    """The network's vertices and edges placed on the surfaces (:func:`recon.curves.network_geometry`)."""
+    """The network's vertices and edges placed on the surfaces (:func:`recon.network.network_geometry`)."""
     def project(part, pts):
         if models[part] is None:  # no surface: the other surfaces place the network alone
             return np.array(pts, dtype=np.float64), np.zeros_like(pts, dtype=np.float64)

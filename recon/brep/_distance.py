@@ -10,9 +10,9 @@ The query is in three steps (the usual scheme of deviation tools):
    other surfaces (B-spline, Bézier, revolution, extrusion, offset) by
    ``ShapeAnalysis_Surface.NextValueOfUV`` per point, started at the UV of the nearest sample;
 3. *trimming*: a foot whose (u, v) falls outside the trimmed face is rejected; then the distance is
-   the minimum over the remaining critical points and the face's boundary edges. The UV test is a
-   polygon test on the face's p-curves, and ``BRepClass_FaceClassifier`` decides exactly for feet
-   within a thin band of the boundary.
+   the minimum over the remaining critical points and the face's boundary edges (:mod:`._edge_distance`).
+   The UV test is a polygon test on the face's p-curves, and ``BRepClass_FaceClassifier`` decides
+   exactly for feet within a thin band of the boundary.
 
 Distances are signed: positive on the side the face's outward normal points to (outside a solid).
 Distances to a solid are measured to its faces, never "0 inside" (OCP-NOTES).
@@ -30,13 +30,12 @@ from scipy.spatial import cKDTree
 
 from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Tool
-from OCP.BRepAdaptor import BRepAdaptor_Curve, BRepAdaptor_Curve2d, BRepAdaptor_Surface
+from OCP.BRepAdaptor import BRepAdaptor_Curve2d, BRepAdaptor_Surface
 from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
 from OCP.BRepClass import BRepClass_FaceClassifier
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools, BRepTools_WireExplorer
-from OCP.Extrema import Extrema_LocateExtPC
 from OCP.GeomAbs import GeomAbs_CurveType, GeomAbs_SurfaceType
 from OCP.gp import gp_Pnt, gp_Pnt2d, gp_Vec
 from OCP.ShapeAnalysis import ShapeAnalysis_Surface
@@ -47,6 +46,8 @@ from OCP.TopoDS import TopoDS, TopoDS_Shape
 from OCP.TopTools import TopTools_IndexedMapOfShape
 
 from ..errors import BrepError, InputError
+from ._edge_distance import edge_samples, edges_distance
+from ._edge_distance import xyz as _xyz
 from ._step_read import faces_of
 from ._surfaces import SURFACE_TYPE_NAMES
 
@@ -65,22 +66,6 @@ _PCURVE_SAMPLES = 257
 _QUERY_CHUNK = 100_000
 # UV grid (per side) sampling a face that BRepMesh could not triangulate.
 _GRID = 48
-_EDGE_SAMPLES = 257
-
-
-def _xyz(p) -> tuple[float, float, float]:
-    return (p.X(), p.Y(), p.Z())
-
-
-@dataclass
-class _Edge:
-    curve: BRepAdaptor_Curve
-    is_line: bool
-    points: np.ndarray  # (q, 3) on the curve
-    params: np.ndarray  # (q,)
-    sagitta: float = 0.0  # bound on the gap between the polyline and the curve
-    closed: bool = False
-    circle: tuple = ()  # (centre, x, y, radius) for circular edges: solved in closed form
 
 
 @dataclass
@@ -97,7 +82,7 @@ class _Face:
     v_period: float = 0.0
     rings: list = field(default_factory=list)  # closed (r, 2) polygons in normalised UV
     ring_tree: cKDTree | None = None
-    edges: list = field(default_factory=list)
+    edges: list = field(default_factory=list)  # EdgeSamples of its non-degenerate edges
     sas: ShapeAnalysis_Surface | None = None
     surface: object = None
 
@@ -229,27 +214,8 @@ class BrepDistance:
                 continue
             key = self._edge_map.FindIndex(edge) or ("face", fd.index, i)
             if key not in self._edge_cache:
-                self._edge_cache[key] = self._edge(edge)
+                self._edge_cache[key] = edge_samples(edge, self.diagonal)
             fd.edges.append(self._edge_cache[key])
-
-    def _edge(self, edge) -> _Edge:
-        """The samples of a non-degenerate edge's 3D curve."""
-        curve = BRepAdaptor_Curve(edge)
-        is_line = curve.GetType() == GeomAbs_CurveType.GeomAbs_Line
-        t = np.linspace(curve.FirstParameter(), curve.LastParameter(), 2 if is_line else _EDGE_SAMPLES)
-        pts = np.array([_xyz(curve.Value(ti)) for ti in t])
-        sag = 0.0
-        if not is_line:
-            mid = np.array([_xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
-            sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
-        closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * self.diagonal)
-        circle = ()
-        if curve.GetType() == GeomAbs_CurveType.GeomAbs_Circle:
-            circ = curve.Circle()
-            ax = circ.Position()
-            circle = tuple(np.array(_xyz(v)) for v in (ax.Location(), ax.XDirection(), ax.YDirection()))
-            circle += (circ.Radius(),)
-        return _Edge(curve=curve, is_line=is_line, points=pts, params=t, sagitta=sag, closed=closed, circle=circle)
 
     def _prepare_mesh(self, fd: _Face):
         loc = TopLoc_Location()
@@ -482,49 +448,6 @@ class BrepDistance:
         norm = np.linalg.norm(nrm, axis=1, keepdims=True)
         return [(uv, foot, nrm / np.where(norm > 0, norm, 1.0))]
 
-    def _edge_distance(self, fd: _Face, p):
-        """Nearest points on the face's (non-degenerate) boundary edges: (dist (n,), foot (n, 3)).
-
-        Straight edges are exact as chords. On a curved edge the sampled polyline gives a lower
-        bound (chord distance minus the edge's largest sagitta); wherever that bound can beat the
-        best so far, a local extremum search (``Extrema_LocateExtPC``) runs in the two parameter
-        intervals beside the nearest sample.
-        """
-        n = len(p)
-        best = np.full(n, np.inf)
-        foot = np.zeros((n, 3))
-        chords = []
-        for e in fd.edges:
-            if e.circle:
-                dc, fc = _arc_distance(p, e.circle, e.params[0], e.params[-1])
-                chords.append((None, None))
-                better = dc < best
-                best[better], foot[better] = dc[better], fc[better]
-                continue
-            dc, fc, k = _polyline_distance(p, e.points)
-            chords.append((dc, k))
-            if e.is_line:
-                better = dc < best
-                best[better], foot[better] = dc[better], fc[better]
-            else:
-                dv = np.linalg.norm(p - e.points[k], axis=1)  # sample points are on the curve
-                better = dv < best
-                best[better], foot[better] = dv[better], e.points[k][better]
-        for e, (dc, k) in zip(fd.edges, chords):
-            if e.is_line or e.circle:
-                continue
-            for i in np.flatnonzero(dc - e.sagitta < best):
-                for lo, hi in _brackets(k[i], len(e.params), e.closed):
-                    t0, t1 = e.params[lo], e.params[hi]
-                    ext = Extrema_LocateExtPC(gp_Pnt(*p[i]), e.curve, 0.5 * (t0 + t1), t0, t1, 1e-12)
-                    if not ext.IsDone():
-                        continue
-                    q = np.array(_xyz(ext.Point().Value()))
-                    dq = float(np.linalg.norm(p[i] - q))
-                    if dq < best[i]:
-                        best[i], foot[i] = dq, q
-        return best, foot
-
     def _face_query(self, index: int, p, *, uv0=None):
         """Unsigned distance, nearest point and outward normal there: (n,), (n, 3), (n, 3)."""
         best, foot, nrm, later = self._face_query_deferred(index, p, uv0=uv0)
@@ -576,7 +499,7 @@ class BrepDistance:
                 # The nearest critical point is off the face: the boundary competes with the others.
                 need_edges = pending.copy()
                 if len(need_edges) and fd.edges:
-                    de, fe = self._edge_distance(fd, p[need_edges])
+                    de, fe = edges_distance(fd.edges, p[need_edges])
                     edge_d[need_edges] = de
         if len(need_edges) and fd.edges:
             better = de < best[need_edges]
@@ -723,95 +646,3 @@ class BrepDistance:
 
 def _xy(p2) -> tuple[float, float]:
     return (p2.X(), p2.Y())
-
-
-#: Segments whose exact distance :func:`_polyline_distance` computes per point before it proves the rest farther.
-NEAR_SEGMENTS = 8
-
-
-def _polyline_distance(p, verts, *, chunk_elems=4_000_000):
-    """Distance from points to a polyline: (dist (n,), nearest point (n, 3), nearest vertex (n,)).
-
-    Exact. Each point is measured against the :data:`NEAR_SEGMENTS` segments whose midpoints are nearest
-    (a k-d tree); a segment of half-length h whose midpoint lies farther than d + h cannot be nearer than
-    d, so where the farthest of those midpoints is beyond the best distance plus the longest half-length,
-    the answer stands. The other points are measured against every segment. (All against all took 15 s of
-    the deviation of a 1M-triangle mesh.)
-    """
-    a, ab = verts[:-1], np.diff(verts, axis=0)
-    l2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300)
-    if len(a) <= 2 * NEAR_SEGMENTS:
-        return _polyline_all(p, a, ab, l2, chunk_elems)
-    tree = cKDTree(a + 0.5 * ab)
-    half = 0.5 * math.sqrt(float(l2.max()))
-    n = len(p)
-    dist, near, vert = np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.int64)
-    todo = np.arange(n)
-    for k in (NEAR_SEGMENTS, 8 * NEAR_SEGMENTS):  # the few points left by the first round get more segments
-        if k >= len(a) or not len(todo):
-            break
-        q = p[todo]
-        dm, idx = tree.query(q, k=k)
-        t = np.clip(np.einsum("qkj,qkj->qk", q[:, None, :] - a[idx], ab[idx]) / l2[idx], 0.0, 1.0)
-        c = a[idx] + t[..., None] * ab[idx]
-        d = np.linalg.norm(q[:, None, :] - c, axis=2)
-        j = np.argmin(d, axis=1)
-        rows = np.arange(len(q))
-        dist[todo], near[todo] = d[rows, j], c[rows, j]
-        vert[todo] = idx[rows, j] + (t[rows, j] > 0.5)
-        todo = todo[dm[:, -1] <= d[rows, j] + half]
-    if len(todo):
-        dist[todo], near[todo], vert[todo] = _polyline_all(p[todo], a, ab, l2, chunk_elems)
-    return dist, near, vert
-
-
-def _polyline_all(p, a, ab, l2, chunk_elems):
-    """:func:`_polyline_distance` against every segment ``a + t ab``, in chunks of ``chunk_elems`` pairs."""
-    n = len(p)
-    dist, near, vert = np.empty(n), np.empty((n, 3)), np.empty(n, dtype=np.int64)
-    step = max(1, chunk_elems // max(1, len(a)))
-    for s in range(0, n, step):
-        q = p[s : s + step]
-        t = np.clip(np.einsum("qij,ij->qi", q[:, None, :] - a[None], ab) / l2, 0.0, 1.0)
-        c = a[None] + t[..., None] * ab[None]
-        d = np.linalg.norm(q[:, None, :] - c, axis=2)
-        j = np.argmin(d, axis=1)
-        rows = np.arange(len(q))
-        dist[s : s + step], near[s : s + step] = d[rows, j], c[rows, j]
-        vert[s : s + step] = j + (t[rows, j] > 0.5)
-    return dist, near, vert
-
-
-def _arc_distance(p, circle, first, last):
-    """Exact distance from points to the arc [first, last] of a circle: (dist (n,), foot (n, 3)).
-
-    On a circle the distance is unimodal in the angle (least at the point's own angle, greatest
-    opposite), so over an arc it is least at that angle if the arc holds it, else at an end.
-    """
-    c, x, y, radius = circle
-    d = p - c
-    theta = np.arctan2(d @ y, d @ x)
-    theta = first + np.mod(theta - first, 2.0 * np.pi)
-    inside = theta <= last
-    ends = []
-    for t in (first, last):
-        q = c + radius * (math.cos(t) * x + math.sin(t) * y)
-        ends.append((np.linalg.norm(p - q, axis=1), np.broadcast_to(q, p.shape)))
-    use_first = ends[0][0] <= ends[1][0]
-    t = np.where(inside, theta, np.where(use_first, first, last))
-    foot = c + radius * (np.cos(t)[:, None] * x + np.sin(t)[:, None] * y)
-    return np.linalg.norm(p - foot, axis=1), foot
-
-
-def _brackets(k, count, closed):
-    """Parameter intervals (sample index pairs) on both sides of sample ``k``."""
-    out = []
-    if k > 0:
-        out.append((k - 1, k))
-    elif closed:
-        out.append((count - 2, count - 1))
-    if k < count - 1:
-        out.append((k, k + 1))
-    elif closed:
-        out.append((0, 1))
-    return out

@@ -20,7 +20,7 @@ from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopTools import TopTools_IndexedMapOfShape
 from OCP.TopoDS import TopoDS, TopoDS_Wire
 
-from ..curves import CurveNetwork, EdgeCurve, NetworkGeometry
+from ..network import CurveNetwork, EdgeCurve, NetworkGeometry
 from ..errors import BrepError
 
 #: A vertex's tolerance never below OCC's own precision (``Precision::Confusion``), however small its gap.

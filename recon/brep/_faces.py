@@ -23,7 +23,7 @@ from OCP.TopTools import TopTools_IndexedMapOfShape
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Wire
 
 from .._parallel import Failure, FailureKind, isolated
-from ..curves import CurveNetwork, NetworkGeometry
+from ..network import CurveNetwork, NetworkGeometry
 from ..errors import BrepError
 from . import _serial  # noqa: F401  (faces cross the pipe from a child as BREP bytes)
 from ._edges import (

@@ -17,7 +17,7 @@ from OCP.ShapeAnalysis import ShapeAnalysis_FreeBounds
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
 
-from ..curves import NetworkGeometry
+from ..network import NetworkGeometry
 
 __all__ = ["BrepResult", "FaceRecord", "FaceStatus", "KIND_COLOURS", "Validity", "free_edge_count", "shape_validity"]
 

@@ -11,7 +11,7 @@ from OCP.TopAbs import TopAbs_REVERSED
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS_Wire
 
-from ..curves import NetworkGeometry
+from ..network import NetworkGeometry
 from ..errors import BrepError
 from ._edges import pnt, vec3
 from ._faces import face_on_surface

@@ -21,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..curves import CurveNetwork, NetworkGeometry
+from ..network import CurveNetwork, NetworkGeometry
 from ..errors import BrepError
 from ._faces import face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
 from ._filling import AREA_RATIO_WARNING, FILLING_TIMEOUT, fallback_face

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._array import perpendicular_frame
+from recon._array import perpendicular_frame
 
 __all__ = [
     "random_rotation",
