@@ -180,7 +180,7 @@ def test_closed_form_fits_recover_exact_surfaces(kind):
     # points on a known surface patch (exact normals): the closed form alone is within 1e-6 of it
     from importlib import import_module
 
-    qf = import_module("recon.decompose._quickfit")
+    qf = import_module("recon.fit")
     rng = np.random.default_rng(7)
     u, v = rng.uniform(0.2, 1.4, 200), rng.uniform(-0.6, 0.6, 200)
     if kind == "sphere":
@@ -212,7 +212,7 @@ def test_split_by_fitting_finds_the_four_fillets_of_a_pocket_ring():
     one linear part, that no surface fits. Grown from seeds inside the ring, the regions are its four true
     cylinders, triangle for triangle, with the true radius and axes along x and y (the mesh vertices lie on
     the true surfaces, so the fit is exact to round-off: 1e-6 of a 3 mm radius is generous)."""
-    from recon.decompose._regions import split_by_fitting
+    from recon.decompose import split_by_fitting
     from recon.fixtures import load_fixture
     from recon.segment import vertex_normals
 

@@ -3,6 +3,7 @@ the critical region, from a skeleton pruned by the paper's ω rule."""
 
 from ._core import DEFAULT_THRESHOLD, decompose
 from ._evaluate import FaceRecovery, face_recovery
+from ._regions import split_by_fitting
 from ._types import PART_KINDS, BoundaryCurves, Decomposition, Part, SurfaceSkeleton
 
 __all__ = [
@@ -15,4 +16,5 @@ __all__ = [
     "SurfaceSkeleton",
     "decompose",
     "face_recovery",
+    "split_by_fitting",
 ]

@@ -11,8 +11,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from .._array import row_norms
-from ..fit import SurfaceFit
-from ._quickfit import surface_normals
+from ..fit import SurfaceFit, surface_normals
 from ._regionfit import _accept, _Ctx, _normals_at
 from ._topology import unique
 

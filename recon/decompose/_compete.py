@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..mesh._topology import stable_argsort
+from ..mesh import stable_argsort
 from ._regionfit import MAX_FIT_POINTS, _Ctx, _error, _fit, _fit_key
 from ._topology import unique
 

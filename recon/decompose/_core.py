@@ -37,7 +37,7 @@ from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
 from ..mesh import Mesh
-from ..mesh._topology import stable_argsort
+from ..mesh import stable_argsort
 from ._topology import Topology, topology, unique
 from ._types import Decomposition, Part, SurfaceSkeleton
 

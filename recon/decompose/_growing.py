@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..fit import SurfaceFit
-from ..fit._select import ANALYTIC_FITTERS
+from ..fit import ANALYTIC_FITTERS, SurfaceFit
 from ._regionfit import _accept, _Ctx, _fit_input, _fit_key, _FitInput
 from ._topology import unique
 

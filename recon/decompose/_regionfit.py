@@ -10,9 +10,7 @@ import numpy as np
 
 from .._array import row_norms, row_sums, unique_inverse
 from .._tolerance import MESH_FLOOR, tolerance_for
-from ..fit import SurfaceFit
-from ..fit._select import ANALYTIC_FITTERS
-from ._quickfit import quick_fit, surface_normals
+from ..fit import ANALYTIC_FITTERS, SurfaceFit, quick_fit, surface_normals
 
 log = logging.getLogger(__name__)
 

@@ -39,9 +39,8 @@ from scipy.sparse.csgraph import connected_components
 
 from .._array import row_norms, unique_inverse
 from .._tolerance import SIGMAS_PER_TOLERANCE
-from ..fit import SurfaceFit
-from ..fit._select import ANALYTIC_FITTERS
-from ..mesh._topology import stable_argsort
+from ..fit import ANALYTIC_FITTERS, SurfaceFit
+from ..mesh import stable_argsort
 from ._blends import MIN_SPLIT_COVER, _blends, _free_forms
 from ._compete import _compete, _merge, _refit
 from ._growing import SEED_CREASE_COS, _seed_regions

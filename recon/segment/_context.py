@@ -10,11 +10,9 @@ from functools import cached_property
 import numpy as np
 
 from .._array import row_norms, unique_inverse
-from ..fit import SurfaceFit, fit_plane, fit_surface
+from ..fit import MISFIT_SCALE, SurfaceFit, fit_plane, fit_surface, residual_scale
 from .._tolerance import SIGMAS_PER_TOLERANCE
-from ..fit._select import MISFIT_SCALE, residual_scale
-from ..mesh import Mesh
-from ..mesh._topology import stable_argsort
+from ..mesh import Mesh, stable_argsort
 from ._labels import vertices_of
 
 __all__ = ["SegmentContext", "exact_vertices", "fit_members", "fit_parts", "fit_triangles", "misfits",

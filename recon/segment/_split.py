@@ -9,9 +9,8 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from ..decompose._regions import split_by_fitting
-from ..decompose._quickfit import surface_normals
-from ..fit import fit_plane
+from ..decompose import split_by_fitting
+from ..fit import fit_plane, surface_normals
 from ._context import (ANALYTIC, CURVED, GROW_ANGLE_DEG, MIN_CORNER_VERTICES, MIN_PART_VERTICES, SegmentContext,
                        exact_vertices, fit_members, fit_parts)
 from ._labels import absorb, coplanar_pieces
