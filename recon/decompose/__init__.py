@@ -4,7 +4,7 @@ the critical region, from a skeleton pruned by the paper's ω rule."""
 from ._core import DEFAULT_THRESHOLD, decompose
 from ._evaluate import FaceRecovery, face_recovery
 from ._regions import split_by_fitting
-from ._types import PART_KINDS, BoundaryCurves, Decomposition, Part, SurfaceSkeleton
+from ._types import PART_KINDS, BoundaryCurves, Decomposition, Part, PartKind, SurfaceSkeleton
 
 __all__ = [
     "BoundaryCurves",
@@ -13,6 +13,7 @@ __all__ = [
     "FaceRecovery",
     "PART_KINDS",
     "Part",
+    "PartKind",
     "SurfaceSkeleton",
     "decompose",
     "face_recovery",

@@ -39,7 +39,7 @@ from ._regions import Regions, fitted_regions
 from ..mesh import Mesh
 from ..mesh import stable_argsort
 from ._topology import Topology, topology, unique
-from ._types import Decomposition, Part, SurfaceSkeleton
+from ._types import Decomposition, Part, PartKind, SurfaceSkeleton
 
 __all__ = ["decompose", "DEFAULT_THRESHOLD"]
 
@@ -58,6 +58,10 @@ MIN_ANGLE_DEG = 12.0
 SHARP_MIDDLE_SHARE = 0.2
 
 _INF = np.inf
+#: The order critical parts are numbered in, after the patches.
+_PART_ORDER = (PartKind.JUNCTION, PartKind.LINEAR, PartKind.TERMINAL, PartKind.PATCH)
+#: A component of the critical region holding no skeleton node: it joins a neighbour (:func:`_absorb_orphans`).
+_ORPHAN = "orphan"
 
 
 def default_jobs() -> int:
@@ -135,7 +139,7 @@ def decompose(
         labels, kinds, sharp, sk, w_min, bc = _critical_parts(V, F, topo, pairs, geom, ff.scale, patch, n_patch,
                                                               omega_min, step)
     else:
-        labels, kinds, sharp, bc = patch.copy(), ["patch"] * n_patch, [False] * n_patch, None
+        labels, kinds, sharp, bc = patch.copy(), [PartKind.PATCH] * n_patch, [False] * n_patch, None
         sk = SurfaceSkeleton(np.zeros((0, 3)), np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
         w_min = 0.0 if omega_min is None else float(omega_min)
     if (labels < 0).any():  # cannot happen by construction; fail loudly rather than emit -1 labels
@@ -145,7 +149,7 @@ def decompose(
     curves, neighbours = bc if bc is not None else boundary_curves(V, topo, labels, len(kinds))
     parts = _parts(labels, kinds, sharp, neighbours, geom.area)
     step("done", 1.0)
-    log.info("decomposition: %s", {k: sum(p.kind == k for p in parts) for k in ("patch", "junction", "linear", "terminal")})
+    log.info("decomposition: %s", {str(k): sum(p.kind == k for p in parts) for k in PartKind})
     return Decomposition(
         labels=labels,
         parts=parts,
@@ -242,9 +246,9 @@ def _numbered_parts(patch, n_patch: int, part_of_face, part_kind: dict) -> tuple
     (``part_of_face == -(patch + 2)``) take that patch's id."""
     critical = patch < 0
     labels = patch.copy()
-    kinds: list[str] = ["patch"] * n_patch
+    kinds: list[PartKind] = [PartKind.PATCH] * n_patch
     crit_ids = unique(part_of_face[critical & (part_of_face >= 0)])
-    order = sorted(crit_ids, key=lambda c: (("junction", "linear", "terminal", "patch").index(part_kind[c]), c))
+    order = sorted(crit_ids, key=lambda c: (_PART_ORDER.index(part_kind[c]), c))
     remap = {int(c): n_patch + i for i, c in enumerate(order)}
     for c in order:
         kinds.append(part_kind[c])
@@ -263,12 +267,12 @@ def _sharp_parts(V, F, labels, geom: FaceGeometry, kinds: list, n_patch: int, ne
     junction (a corner vertex) whose linear parts are all sharp. Patches never are."""
     # (only the linear parts' share decides anything: the patches are the largest parts, not measured)
     mid = _middle_share(V, F, labels, geom.area, len(kinds), geom.unit,
-                        only=[i for i in range(n_patch, len(kinds)) if kinds[i] == "linear"])
-    sharp = [False] * n_patch + [bool(kinds[i] == "linear" and mid[i] < SHARP_MIDDLE_SHARE)
+                        only=[i for i in range(n_patch, len(kinds)) if kinds[i] == PartKind.LINEAR])
+    sharp = [False] * n_patch + [bool(kinds[i] == PartKind.LINEAR and mid[i] < SHARP_MIDDLE_SHARE)
                                  for i in range(n_patch, len(kinds))]
     for i in range(n_patch, len(kinds)):
-        if kinds[i] == "junction":
-            lin = [j for j in neighbours[i] if kinds[j] == "linear"]
+        if kinds[i] == PartKind.JUNCTION:
+            lin = [j for j in neighbours[i] if kinds[j] == PartKind.LINEAR]
             sharp[i] = bool(lin) and all(sharp[j] for j in lin)
     return sharp
 
@@ -338,7 +342,7 @@ def _part_fits(regions: Regions, labels, area, kinds) -> dict:
         fit = regions.fits[r]
         if fit.type == "free" or not fit or w[p, r] < BLEND_FIT_SHARE * tot[p]:
             continue
-        if (kinds[p] == "patch") == bool(regions.blend[r]):
+        if (kinds[p] == PartKind.PATCH) == bool(regions.blend[r]):
             continue  # a patch on a blend's surface (or the reverse) is not what was fitted for it
         out[p] = fit
     return out
@@ -580,16 +584,16 @@ def _cut_parts(m, n_vertices, pairs, topo, critical, cut_keys, junction_faces, t
         cut = np.zeros(len(keys), bool)
     cut |= ~(critical[pairs[:, 0]] & critical[pairs[:, 1]])
     _, comp = cut_components(m, pairs[:, :2], cut, active=critical)
-    kind: dict[int, str] = {}
+    kind: dict[int, str] = {}  # PartKind, or _ORPHAN until it is absorbed
     for faces_ in junction_faces:
         for c in unique(comp[faces_]):
-            kind[int(c)] = "junction"
+            kind[int(c)] = PartKind.JUNCTION
     for c in unique(comp[chain_faces]):
-        kind.setdefault(int(c), "linear")
+        kind.setdefault(int(c), PartKind.LINEAR)
     for c in unique(comp[terminal_faces]):
-        kind.setdefault(int(c), "terminal")
+        kind.setdefault(int(c), PartKind.TERMINAL)
     for c in unique(comp[critical]):
-        kind.setdefault(int(c), "orphan")
+        kind.setdefault(int(c), _ORPHAN)
     return comp, kind
 
 
@@ -603,7 +607,7 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     elen = row_norms(V[e[:, 0]] - V[e[:, 1]])
     comp = comp.copy()
     for _ in range(10):
-        orphans = {c for c, k in kind.items() if k == "orphan"}
+        orphans = {c for c, k in kind.items() if k == _ORPHAN}
         if not orphans:
             break
         f, g = pairs[:, 0], pairs[:, 1]
@@ -632,8 +636,8 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
         if not changed:
             break
     for c, k in list(kind.items()):
-        if k == "orphan":
-            kind[c] = "patch"
+        if k == _ORPHAN:
+            kind[c] = PartKind.PATCH
     return comp
 
 
