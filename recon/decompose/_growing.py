@@ -30,8 +30,9 @@ def _grow_one(ctx: _Ctx, faces: np.ndarray, fit: SurfaceFit, allowed: np.ndarray
 
     ``faces`` sorted and unique. Bookkeeping is in the region's own size (the mesh is only touched through the
     ``inreg`` mask), so the many small seeds of a large mesh do not cost a pass over the mesh per ring. ``fi``:
-    the fit input ``fit`` was made from, if it is that of ``faces``. ``memo`` (:func:`_refit`'s): when the region's
-    last fit was made on its final triangles, it is what a refit of that type on them gives.
+    the fit input ``fit`` was made from, if it is that of ``faces``. ``memo`` (that of
+    :func:`recon.decompose._compete._refit`): when the region's last fit was made on its final triangles, it is
+    what a refit of that type on them gives.
     """
     made_on = -1  # size of the region the current fit was polished on (by a refit or a stall's fit)
     inreg = np.zeros(len(ctx.F), bool)
@@ -100,7 +101,8 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
 
     ``max_seeds``: try at most this many seed discs (default: until every triangle was tried).
 
-    With a second process (``ctx.worker``, see :class:`recon.decompose._worker._Worker`) the next seed grows there while this one grows
+    With a second process (``ctx.worker``, a :class:`recon.decompose._worker._Worker`) the next seed grows there
+    while this one grows
     here, speculatively: its result is kept only when it is the one growing them one after the other gives
     (:func:`_speculation_holds`), so the regions do not depend on the number of processes.
     """

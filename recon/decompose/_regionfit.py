@@ -192,5 +192,6 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
 
 
 def _fit_key(kind: str, faces: np.ndarray):
-    """Memo key of a polished fit of ``kind`` on the sorted triangle set ``faces`` (see :func:`_refit`)."""
+    """Memo key of a polished fit of ``kind`` on the sorted triangle set ``faces``
+    (see :func:`recon.decompose._compete._refit`)."""
     return kind, hashlib.blake2b(faces.tobytes(), digest_size=16).digest()

@@ -8,7 +8,8 @@ from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_toru
 from ._select import ANALYTIC_FITTERS, MISFIT_SCALE, fit_surface, residual_scale
 from ._quickfit import quick_fit, surface_normals
 from ._geometry import BSplineCurve, BSplineSurface, Circle, Cone, Cylinder, Line, Plane, Sphere, SurfaceKind, Torus
-from ._types import ACCEPT_MAX_FACTOR, CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats, within_tolerance
+from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats,
+                     within_tolerance)
 
 __all__ = [
     "ACCEPT_MAX_FACTOR",

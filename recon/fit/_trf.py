@@ -132,7 +132,7 @@ def _soft_l1(f, f_scale: float):
 
 
 def _soft_l1_rho12(t, fs2: float):
-    """:func:`_soft_l1`'s rho1 and rho2 of the same t (its rho0 only feeds the cost, taken from :func:`_soft_l1_cost`)."""
+    """:func:`_soft_l1`'s rho1 and rho2 of the same t (its rho0 only feeds the cost: :func:`_soft_l1_cost`)."""
     rho1 = t**-0.5
     rho2 = -0.5 * t**-1.5
     rho2 /= fs2

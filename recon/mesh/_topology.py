@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["unique_edges", "halfedge_order", "manifold_pairs", "unique_rows", "stable_argsort", "unique", "unique_first"]
+__all__ = ["unique_edges", "halfedge_order", "manifold_pairs", "unique_rows", "stable_argsort", "unique",
+           "unique_first"]
 
 _INT64_MAX = np.iinfo(np.int64).max
 

@@ -557,8 +557,8 @@ def _skeleton_edges(cluster: np.ndarray, kept: np.ndarray, t: np.ndarray, u: np.
     """The skeleton's edges: the kept Voronoi edges between different clusters, parallel ones merged.
 
     Returns ``real`` (which pairs are skeleton edges), ``rep`` and ``edge_of`` (``np.unique``'s index and inverse
-    of their keys: a representative pair per edge, the edge of each real pair), the clusters ``used`` as vertices, ``vid`` (triangle -> vertex, -1) and
-    ``edges (e, 2)`` in vertex ids."""
+    of their keys: a representative pair per edge, the edge of each real pair), the clusters ``used`` as vertices,
+    ``vid`` (triangle -> vertex, -1) and ``edges (e, 2)`` in vertex ids."""
     m = len(cluster)
     ct, cu = cluster[t], cluster[u]
     real = kept & (ct != cu)
