@@ -180,7 +180,7 @@ def test_closed_form_fits_recover_exact_surfaces(kind):
     # points on a known surface patch (exact normals): the closed form alone is within 1e-6 of it
     from importlib import import_module
 
-    qf = import_module("recon.decompose._quickfit")
+    qf = import_module("recon.fit")
     rng = np.random.default_rng(7)
     u, v = rng.uniform(0.2, 1.4, 200), rng.uniform(-0.6, 0.6, 200)
     if kind == "sphere":
@@ -212,7 +212,7 @@ def test_split_by_fitting_finds_the_four_fillets_of_a_pocket_ring():
     one linear part, that no surface fits. Grown from seeds inside the ring, the regions are its four true
     cylinders, triangle for triangle, with the true radius and axes along x and y (the mesh vertices lie on
     the true surfaces, so the fit is exact to round-off: 1e-6 of a 3 mm radius is generous)."""
-    from recon.decompose._regions import split_by_fitting
+    from recon.decompose import split_by_fitting
     from recon.fixtures import load_fixture
     from recon.segment import vertex_normals
 
@@ -241,7 +241,7 @@ def test_turn_of_a_cylinder_region(span, expected):
     (a full turn has no gap but the step itself)."""
     from types import SimpleNamespace
 
-    from recon.decompose._regions import _turn
+    from recon.decompose._blends import _turn
     from recon.fit import SurfaceFit
 
     d = np.array([1.0, 2.0, 2.0]) / 3.0
@@ -283,15 +283,15 @@ def test_two_processes_give_the_same_decomposition(part, variant, monkeypatch):
     one that did not), and every region grown from seeds is the same, triangle for triangle and parameter for
     parameter, and so is the decomposition. (The regions are compared because the later steps can hide a
     difference: keeping every guess changes the seeded regions of both fixtures, not their final labels.)"""
-    from recon.decompose import _regions
+    from recon.decompose import _growing, _regions
 
     if not _regions._Worker.available():
         pytest.skip("no fork here")
     fx = _fixture(part, variant)
     monkeypatch.setattr(_regions, "PARALLEL_MIN_TRIANGLES", 0)  # the fixtures are below the size it pays from
     verdicts, grown = [], []
-    holds, seeded = _regions._speculation_holds, _regions._seed_regions
-    monkeypatch.setattr(_regions, "_speculation_holds", lambda *a: verdicts.append(holds(*a)) or verdicts[-1])
+    holds, seeded = _growing._speculation_holds, _regions._seed_regions
+    monkeypatch.setattr(_growing, "_speculation_holds", lambda *a: verdicts.append(holds(*a)) or verdicts[-1])
 
     def record(*args, **kwargs):
         out = seeded(*args, **kwargs)
@@ -335,17 +335,17 @@ def test_a_worker_that_dies_hangs_or_fails_changes_nothing(job, monkeypatch, cap
     the timeout or fails a job, the parent does that work itself and goes on in one process."""
     import time
 
-    from recon.decompose import _regions
+    from recon.decompose import _regions, _worker
 
     if not _regions._Worker.available():
         pytest.skip("no fork here")
     fx = _fixture("plate_holes", "noisy20")
     monkeypatch.setattr(_regions, "PARALLEL_MIN_TRIANGLES", 0)
     one = decompose((fx.vertices, fx.faces), jobs=1)
-    monkeypatch.setattr(_regions, "WORKER_TIMEOUT", 0.5)
+    monkeypatch.setattr(_worker, "WORKER_TIMEOUT", 0.5)
     # the worker is forked after this: it runs the broken job for every job the parent sends
-    monkeypatch.setitem(_regions._JOBS, "grow", job)
-    monkeypatch.setitem(_regions._JOBS, "fits", job)
+    monkeypatch.setitem(_worker._JOBS, "grow", job)
+    monkeypatch.setitem(_worker._JOBS, "fits", job)
     t = time.perf_counter()
     two = decompose((fx.vertices, fx.faces), jobs=2)
     assert time.perf_counter() - t < 30  # not the 60 s the hanging job sleeps

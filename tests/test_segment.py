@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from recon.decompose import decompose
-from recon.fit._select import residual_scale
+from recon.fit import residual_scale
 from recon.segment import (PASSES, Pass, Rounds, SegmentContext, describe, dissolve_misfits, fit_parts, grow_faces,
                            merge_round_bands, merge_same_surface, refine, segment, tidy, trim_to_surface)
 from recon.segment._merge import one_centre

@@ -126,7 +126,7 @@ def _surface_models(network: CurveNetwork, surfaces: Mapping) -> dict[int, Surfa
             if not hasattr(s, "params"):
                 raise  # not a fit: the caller passed something else (misuse)
             # A fit without usable parameters (empty, or ones OCC refuses): the part gets a filling face, or
-            # none. Reported as "prism/coarse: surface fit params: expected one of (...), got keys []".
+            # none. Reported as "prism/coarse: plane surface fit: params need [...], got keys []".
             log.info("part %d: no surface from its fit (%s: %s)", p, type(err).__name__, err)
             models[p] = None
     return models

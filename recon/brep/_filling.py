@@ -17,6 +17,7 @@ from ..errors import BrepError
 from ._edges import checked_edges, pnt
 from ._faces import face_in_child, face_on_surface, orientation_vote
 from ._result import FaceStatus, face_area
+from ..fit import SurfaceKind
 from ._surfaces import SurfaceModel
 
 
@@ -127,7 +128,7 @@ def fallback_face_through(loops, edges, points, normals, context, *, precision: 
         return None, 0.0, FaceStatus.FAILED, str(err)
     except Exception as err:  # noqa: BLE001  (an OCC failure outside the checked calls is still a record)
         return None, 0.0, FaceStatus.FAILED, f"filling failed: {type(err).__name__}: {err}"
-    filling = SurfaceModel("bspline", surface)
+    filling = SurfaceModel(SurfaceKind.BSPLINE, surface)
     fvote = 1
     try:
         fvote = orientation_vote(filling, points, normals)

@@ -1,16 +1,16 @@
-"""Surfaces as OpenCascade geometry, and fast projection onto them.
+"""Surfaces as OpenCascade geometry beside recon's geometry model, and projection onto them.
 
 A part's surface comes in as either an OpenCascade ``Geom_Surface`` (e.g. the true surface of a CAD
-face, ``BRep_Tool.Surface_s``) or a fit from :mod:`recon.fit` (an object with ``.type`` and ``.params``).
-Analytic surfaces are projected onto in closed form with numpy (the curve network projects thousands
-of points); anything else goes through ``GeomAPI_ProjectPointOnSurf``.
+face, ``BRep_Tool.Surface_s``) or a fit from :mod:`recon.fit` (``.type`` and ``.params``, keyed as
+:class:`recon.fit.SurfaceFit` documents). An analytic surface is also one of :mod:`recon.fit`'s geometry objects
+(``Plane``, ``Cylinder``, ...), made from the OpenCascade surface's own frame, which projects in closed form with
+numpy (the curve network projects thousands of points); anything else goes through ``GeomAPI_ProjectPointOnSurf``.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 from OCP.Geom import (
@@ -31,24 +31,25 @@ from OCP.TColgp import TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
 from ..errors import BrepError, InputError
+from ..fit import Cone, Cylinder, Plane, Sphere, SurfaceKind, Torus
 
 __all__ = ["SurfaceModel", "surface_model"]
 
 log = logging.getLogger(__name__)
 
-#: Report names of ``GeomAbs_SurfaceType`` values (shared by the builder and the deviation analysis).
+#: The kind of each ``GeomAbs_SurfaceType`` value (shared by the builder and the deviation analysis).
 SURFACE_TYPE_NAMES = {
-    GeomAbs_SurfaceType.GeomAbs_Plane: "plane",
-    GeomAbs_SurfaceType.GeomAbs_Cylinder: "cylinder",
-    GeomAbs_SurfaceType.GeomAbs_Cone: "cone",
-    GeomAbs_SurfaceType.GeomAbs_Sphere: "sphere",
-    GeomAbs_SurfaceType.GeomAbs_Torus: "torus",
-    GeomAbs_SurfaceType.GeomAbs_BSplineSurface: "bspline",
-    GeomAbs_SurfaceType.GeomAbs_BezierSurface: "bezier",
-    GeomAbs_SurfaceType.GeomAbs_SurfaceOfRevolution: "revolution",
-    GeomAbs_SurfaceType.GeomAbs_SurfaceOfExtrusion: "extrusion",
-    GeomAbs_SurfaceType.GeomAbs_OffsetSurface: "offset",
-    GeomAbs_SurfaceType.GeomAbs_OtherSurface: "other",
+    GeomAbs_SurfaceType.GeomAbs_Plane: SurfaceKind.PLANE,
+    GeomAbs_SurfaceType.GeomAbs_Cylinder: SurfaceKind.CYLINDER,
+    GeomAbs_SurfaceType.GeomAbs_Cone: SurfaceKind.CONE,
+    GeomAbs_SurfaceType.GeomAbs_Sphere: SurfaceKind.SPHERE,
+    GeomAbs_SurfaceType.GeomAbs_Torus: SurfaceKind.TORUS,
+    GeomAbs_SurfaceType.GeomAbs_BSplineSurface: SurfaceKind.BSPLINE,
+    GeomAbs_SurfaceType.GeomAbs_BezierSurface: SurfaceKind.BEZIER,
+    GeomAbs_SurfaceType.GeomAbs_SurfaceOfRevolution: SurfaceKind.REVOLUTION,
+    GeomAbs_SurfaceType.GeomAbs_SurfaceOfExtrusion: SurfaceKind.EXTRUSION,
+    GeomAbs_SurfaceType.GeomAbs_OffsetSurface: SurfaceKind.OFFSET,
+    GeomAbs_SurfaceType.GeomAbs_OtherSurface: SurfaceKind.OTHER,
 }
 
 
@@ -74,65 +75,42 @@ def _ax3(origin, axis, xdir=None) -> gp_Ax3:
 
 @dataclass(frozen=True)
 class SurfaceModel:
-    """One part's surface: the OCC geometry plus what numpy needs to project onto it.
+    """One part's surface: the OCC geometry, and for an analytic kind the same surface in recon's geometry model.
 
-    ``kind`` is plane/cylinder/cone/sphere/torus/bspline/...; ``origin``/``axis`` are the plane's point
-    and normal, the axis of a surface of revolution (cone: ``origin`` is the apex), or the centre;
-    ``radius``/``minor``/``angle`` as the kind needs.
+    ``kind`` a :class:`recon.fit.SurfaceKind`; ``surface`` the :class:`recon.fit.Plane`, ``Sphere``, ``Cylinder``,
+    ``Cone`` or ``Torus`` read from ``geom``'s own frame (None for the other kinds), which projects in closed form.
     """
 
-    kind: str
+    kind: SurfaceKind
     geom: Geom_Surface
-    origin: np.ndarray | None = None
-    axis: np.ndarray | None = None
-    radius: float = 0.0
-    minor: float = 0.0
-    angle: float = 0.0
+    surface: Plane | Sphere | Cylinder | Cone | Torus | None = None
     #: Projections onto a free-form ``geom`` by point (its bytes): the network's alternating projections and
     #: refinement ask for the same point again (rocker-arm2500: 28 % of 17,063), and each costs ~2 ms.
     _memo: dict = field(default_factory=dict, compare=False, repr=False)
 
+    @property
+    def origin(self) -> np.ndarray | None:
+        """The plane's point, the apex of a cone, the centre of a sphere or torus, a cylinder's axis point."""
+        s = self.surface
+        if isinstance(s, Plane):
+            return s.origin
+        if isinstance(s, Cylinder):
+            return s.axis_point
+        if isinstance(s, Cone):
+            return s.apex
+        return None if s is None else s.center
+
+    @property
+    def axis(self) -> np.ndarray | None:
+        """The plane's normal, the axis of a surface of revolution (a cone's into its opening); None for a sphere."""
+        s = self.surface
+        return s.normal if isinstance(s, Plane) else getattr(s, "axis_dir", None)
+
     def project(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Closest points and unit normals (sign not meaningful) for ``points (k, 3)``."""
-        x = np.atleast_2d(np.asarray(points, dtype=np.float64))
-        k = self.kind
-        if k == "plane":
-            n = self.axis
-            q = x - np.outer((x - self.origin) @ n, n)
-            return q, np.broadcast_to(n, x.shape).copy()
-        if k in ("cylinder", "torus", "cone"):
-            d = self.axis
-            rel = x - self.origin
-            h = rel @ d
-            radial = rel - np.outer(h, d)
-            rho = np.linalg.norm(radial, axis=1)
-            e = np.where(rho[:, None] > 1e-12, radial / np.maximum(rho, 1e-300)[:, None], self._axis_perp)
-            if k == "cylinder":
-                return self.origin + np.outer(h, d) + self.radius * e, e
-            if k == "torus":
-                ring = self.origin + self.radius * e
-                w = x - ring
-                wn = np.linalg.norm(w, axis=1)
-                u = np.where(wn[:, None] > 1e-12, w / np.maximum(wn, 1e-300)[:, None], e)
-                return ring + self.minor * u, u
-            # cone: in the (rho, h) half-plane about the apex, the generator is g
-            g = np.array([abs(np.sin(self.angle)), np.sign(self.angle) * np.cos(self.angle)])
-            s = np.maximum(rho * g[0] + h * g[1], 0.0)
-            q = self.origin + np.outer(s * g[0], np.ones(3)) * e + np.outer(s * g[1], d)
-            nrm = g[1] * e - g[0] * d[None, :]
-            return q, nrm / np.linalg.norm(nrm, axis=1)[:, None]
-        if k == "sphere":
-            w = x - self.origin
-            wn = np.linalg.norm(w, axis=1)
-            u = np.where(wn[:, None] > 1e-12, w / np.maximum(wn, 1e-300)[:, None], np.array([0, 0, 1.0]))
-            return self.origin + self.radius * u, u
-        return project_occ(self.geom, x, memo=self._memo)
-
-    @cached_property
-    def _axis_perp(self) -> np.ndarray:
-        """``_perp(axis)``: the radial direction :meth:`project` gives a point on the axis, made once (the curve
-        network projects onto each surface some fifty times)."""
-        return _perp(self.axis)
+        if self.surface is not None:
+            return self.surface.project(points)
+        return project_occ(self.geom, np.atleast_2d(np.asarray(points, dtype=np.float64)), memo=self._memo)
 
     def reframed(self, points) -> "SurfaceModel":
         """The same surface with its seam (and a sphere's poles) turned away from ``points (k, 3)``.
@@ -142,16 +120,17 @@ class SurfaceModel:
         the surface's own axis (or choosing the sphere's axis) avoids both without changing the geometry.
         """
         pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
-        if len(pts) == 0 or self.kind not in ("cylinder", "cone", "sphere", "torus"):
+        s = self.surface
+        if len(pts) == 0 or not isinstance(s, (Cylinder, Cone, Sphere, Torus)):
             return self
         rel = pts - self.origin
-        if self.kind == "sphere":
+        if isinstance(s, Sphere):
             m = rel.mean(axis=0)
             if np.linalg.norm(m) < 1e-12:
                 return self
             m = _unit(m)
             axis = _perp(m)
-            geom = Geom_SphericalSurface(_ax3(self.origin, axis, -m), self.radius)
+            geom = Geom_SphericalSurface(_ax3(s.center, axis, -m), s.radius)
         else:
             d = self.axis
             radial = rel - np.outer(rel @ d, d)
@@ -166,16 +145,18 @@ class SurfaceModel:
             ax3 = self.geom.Position() if hasattr(self.geom, "Position") else None
             direct = ax3.Direct() if ax3 is not None else True
             axis = d if direct else -d
-            if self.kind == "cylinder":
-                geom = Geom_CylindricalSurface(_ax3(self.origin, axis, xdir), self.radius)
-            elif self.kind == "torus":
-                geom = Geom_ToroidalSurface(_ax3(self.origin, axis, xdir), self.radius, self.minor)
+            if isinstance(s, Cylinder):
+                geom = Geom_CylindricalSurface(_ax3(s.axis_point, axis, xdir), s.radius)
+            elif isinstance(s, Torus):
+                geom = Geom_ToroidalSurface(_ax3(s.center, axis, xdir), s.major_radius, s.minor_radius)
             else:
-                cone = GeomAdaptor_Surface(self.geom).Cone()
-                loc = _vec(cone.Location())
-                geom = Geom_ConicalSurface(_ax3(loc, axis, xdir), cone.SemiAngle(), cone.RefRadius())
                 if not direct:
                     return self
+                cone = GeomAdaptor_Surface(self.geom).Cone()
+                loc = _vec(cone.Location())
+                # OpenCascade's own axis: with a negative semi-angle it points away from the opening (Cone.axis_dir)
+                geom = Geom_ConicalSurface(_ax3(loc, _vec(cone.Axis().Direction()), xdir), cone.SemiAngle(),
+                                           cone.RefRadius())
         return _from_geom(geom)
 
     def signed_normals(self, points) -> np.ndarray:
@@ -216,63 +197,59 @@ def project_occ(geom: Geom_Surface, points, *, memo: dict | None = None) -> tupl
 
 def _from_geom(geom: Geom_Surface) -> SurfaceModel:
     ad = GeomAdaptor_Surface(geom)
-    kind = SURFACE_TYPE_NAMES.get(ad.GetType(), "other")
-    if kind == "plane":
+    kind = SURFACE_TYPE_NAMES.get(ad.GetType(), SurfaceKind.OTHER)
+    if kind == SurfaceKind.PLANE:
         pln = ad.Plane()
         pos = pln.Position()
         n = np.cross(_vec(pos.XDirection()), _vec(pos.YDirection()))
-        return SurfaceModel("plane", geom, _vec(pln.Location()), _unit(n))
-    if kind == "cylinder":
+        return SurfaceModel(kind, geom, Plane(_vec(pln.Location()), _unit(n)))
+    if kind == SurfaceKind.CYLINDER:
         c = ad.Cylinder()
-        return SurfaceModel("cylinder", geom, _vec(c.Location()), _vec(c.Axis().Direction()), c.Radius())
-    if kind == "cone":
+        return SurfaceModel(kind, geom, Cylinder(_vec(c.Location()), _vec(c.Axis().Direction()), c.Radius()))
+    if kind == SurfaceKind.CONE:
         c = ad.Cone()
-        return SurfaceModel("cone", geom, _vec(c.Apex()), _vec(c.Axis().Direction()), c.RefRadius(),
-                            angle=c.SemiAngle())
-    if kind == "sphere":
-        s = ad.Sphere()
-        return SurfaceModel("sphere", geom, _vec(s.Location()), None, s.Radius())
-    if kind == "torus":
+        a = c.SemiAngle()  # OpenCascade's is signed: negative when the cone opens against its axis
+        d = _vec(c.Axis().Direction())
+        return SurfaceModel(kind, geom, Cone(_vec(c.Apex()), d if a > 0 else -d, abs(a)))
+    if kind == SurfaceKind.SPHERE:
+        sph = ad.Sphere()
+        return SurfaceModel(kind, geom, Sphere(_vec(sph.Location()), sph.Radius()))
+    if kind == SurfaceKind.TORUS:
         t = ad.Torus()
-        return SurfaceModel("torus", geom, _vec(t.Location()), _vec(t.Axis().Direction()), t.MajorRadius(),
-                            minor=t.MinorRadius())
+        return SurfaceModel(kind, geom, Torus(_vec(t.Location()), _vec(t.Axis().Direction()), t.MajorRadius(),
+                                              t.MinorRadius()))
     return SurfaceModel(kind, geom)
 
 
-def _param(params: dict, *names, default=None):
-    for n in names:
-        if n in params and params[n] is not None:
-            return params[n]
-    if default is not None:
-        return default
-    raise InputError(f"surface fit params: expected one of {names}, got keys {sorted(params)}")
+def _params(fit, *names: str) -> list:
+    """The values of ``names`` in ``fit.params`` (the keys :class:`recon.fit.SurfaceFit` documents for its type)."""
+    p = fit.params
+    missing = [n for n in names if p.get(n) is None]
+    if missing:
+        raise InputError(f"{fit.type} surface fit: params need {missing}, got keys {sorted(p)}")
+    return [p[n] for n in names]
 
 
 def _from_fit(fit) -> SurfaceModel:
     """A :mod:`recon.fit` result (``.type`` + ``.params``) as OCC geometry."""
     kind = str(fit.type).lower()
-    p = dict(fit.params)
     if kind == "plane":
-        origin = np.asarray(_param(p, "origin", "point", "center", "centroid"), float)
-        normal = np.asarray(_param(p, "normal", "axis"), float)
+        origin, normal = (np.asarray(v, float) for v in _params(fit, "origin", "normal"))
         return _from_geom(Geom_Plane(_ax3(origin, normal)))
     if kind == "cylinder":
-        origin = np.asarray(_param(p, "origin", "point", "center", "axis_point"), float)
-        axis = np.asarray(_param(p, "axis_dir", "axis", "direction"), float)
-        r = float(_param(p, "radius"))
-        return _from_geom(Geom_CylindricalSurface(_ax3(origin, axis), r))
+        origin, axis, r = _params(fit, "axis_point", "axis_dir", "radius")
+        return _from_geom(Geom_CylindricalSurface(_ax3(np.asarray(origin, float), np.asarray(axis, float)), float(r)))
     if kind == "sphere":
-        c = np.asarray(_param(p, "center", "origin"), float)
-        return _from_geom(Geom_SphericalSurface(_ax3(c, [0, 0, 1.0]), float(_param(p, "radius"))))
+        c, r = _params(fit, "center", "radius")
+        return _from_geom(Geom_SphericalSurface(_ax3(np.asarray(c, float), [0, 0, 1.0]), float(r)))
     if kind == "torus":
-        c = np.asarray(_param(p, "center", "origin"), float)
-        axis = np.asarray(_param(p, "axis_dir", "axis", "normal"), float)
-        return _from_geom(Geom_ToroidalSurface(_ax3(c, axis), float(_param(p, "major_radius", "R", "radius")),
-                                               float(_param(p, "minor_radius", "r", "minor"))))
+        c, axis, big, small = _params(fit, "center", "axis_dir", "major_radius", "minor_radius")
+        return _from_geom(Geom_ToroidalSurface(_ax3(np.asarray(c, float), np.asarray(axis, float)), float(big),
+                                               float(small)))
     if kind == "cone":
-        apex = np.asarray(_param(p, "apex", "origin"), float)
-        axis = _unit(np.asarray(_param(p, "axis_dir", "axis", "direction"), float))
-        half = float(_param(p, "half_angle", "semi_angle", "angle"))
+        apex, axis, half = _params(fit, "apex", "axis_dir", "half_angle")
+        apex, axis, half = np.asarray(apex, float), _unit(np.asarray(axis, float)), float(half)
+        p = fit.params
         # OCC wants a reference circle with positive radius, away from the singular apex.
         if p.get("ref_point") is not None and p.get("ref_radius") is not None:
             loc, ref_r = np.asarray(p["ref_point"], float), float(p["ref_radius"])
@@ -280,18 +257,18 @@ def _from_fit(fit) -> SurfaceModel:
             loc, ref_r = apex + np.cos(half) * axis, np.sin(half)
         return _from_geom(Geom_ConicalSurface(_ax3(loc, axis), half, ref_r))
     if kind == "bspline":
-        return _from_geom(_bspline_surface(p))
+        return _from_geom(_bspline_surface(fit))
     raise InputError(f"surface fit: unsupported type {fit.type!r}; expected plane/cylinder/cone/sphere/torus/bspline")
 
 
-def _bspline_surface(p: dict) -> Geom_BSplineSurface:
-    ctrl = np.asarray(_param(p, "control_points", "poles", "ctrl"), float)
+def _bspline_surface(fit) -> Geom_BSplineSurface:
+    ctrl, du, dv, ku, kv = _params(fit, "control_points", "degree_u", "degree_v", "knots_u", "knots_v")
+    p = fit.params
+    ctrl = np.asarray(ctrl, float)
     if ctrl.ndim != 3 or ctrl.shape[2] != 3:
         raise InputError(f"bspline surface fit: control_points must be (nu, nv, 3), got {ctrl.shape}")
-    du = int(_param(p, "degree_u", "du", "degree"))
-    dv = int(_param(p, "degree_v", "dv", "degree"))
-    ku = np.asarray(_param(p, "knots_u", "tu"), float)
-    kv = np.asarray(_param(p, "knots_v", "tv"), float)
+    du, dv = int(du), int(dv)
+    ku, kv = np.asarray(ku, float), np.asarray(kv, float)
 
     def knots(flat):
         vals, mults = np.unique(np.round(flat, 12), return_counts=True)

@@ -3,7 +3,8 @@ the critical region, from a skeleton pruned by the paper's ω rule."""
 
 from ._core import DEFAULT_THRESHOLD, decompose
 from ._evaluate import FaceRecovery, face_recovery
-from ._types import PART_KINDS, BoundaryCurves, Decomposition, Part, SurfaceSkeleton
+from ._regions import split_by_fitting
+from ._types import PART_KINDS, BoundaryCurves, Decomposition, Part, PartKind, SurfaceSkeleton
 
 __all__ = [
     "BoundaryCurves",
@@ -12,7 +13,9 @@ __all__ = [
     "FaceRecovery",
     "PART_KINDS",
     "Part",
+    "PartKind",
     "SurfaceSkeleton",
     "decompose",
     "face_recovery",
+    "split_by_fitting",
 ]

@@ -37,9 +37,9 @@ from ..segment_graph import cut_components
 from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
 from ..mesh import Mesh
-from ..mesh._topology import stable_argsort
+from ..mesh import stable_argsort
 from ._topology import Topology, topology, unique
-from ._types import Decomposition, Part, SurfaceSkeleton
+from ._types import Decomposition, Part, PartKind, SurfaceSkeleton
 
 __all__ = ["decompose", "DEFAULT_THRESHOLD"]
 
@@ -58,6 +58,10 @@ MIN_ANGLE_DEG = 12.0
 SHARP_MIDDLE_SHARE = 0.2
 
 _INF = np.inf
+#: The order critical parts are numbered in, after the patches.
+_PART_ORDER = (PartKind.JUNCTION, PartKind.LINEAR, PartKind.TERMINAL, PartKind.PATCH)
+#: A component of the critical region holding no skeleton node: it joins a neighbour (:func:`_absorb_orphans`).
+_ORPHAN = "orphan"
 
 
 def default_jobs() -> int:
@@ -112,13 +116,7 @@ def decompose(
     V, F = mesh_arrays(mesh)
     m, n = len(F), len(V)
     step = progress or (lambda stage, frac: None)
-    threshold = DEFAULT_THRESHOLD if threshold is None else float(threshold)
-    if not 0 < threshold < 1:
-        raise InputError(f"`threshold` must lie in (0, 1), got {threshold}")
-    if omega_min is not None and not omega_min >= 0:
-        raise InputError(f"`omega_min` must be a non-negative length, got {omega_min!r}")
-    if jobs is not None and not (isinstance(jobs, (int, np.integer)) and jobs >= 1):
-        raise InputError(f"`jobs` must be a whole number of processes, at least 1, got {jobs!r}")
+    threshold = _checked(threshold, omega_min, jobs)
 
     step("features", 0.0)
     topo = topology(F, n)
@@ -126,102 +124,164 @@ def decompose(
     geom = FaceGeometry(V, F, cross=mesh.face_cross, centroid=mesh.face_centroids) if isinstance(mesh, Mesh) \
         else FaceGeometry(V, F)
     ff = features if features is not None else _feature_field(V, F, scale=scale, geom=geom, pairs=topo.twin_pairs)
-    s = ff.scale
-    area = geom.area
 
-    # -- 1. smooth patches ------------------------------------------------------------------------------
+    # -- 1. smooth patches: what one analytic surface covers ----------------------------------------------
     step("patches", 0.2)
-    fmeasure = ff.face_measure(F)
-    smooth = fmeasure < threshold
     pairs = _face_pairs(topo)
-    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
-    min_area = default_min_area(diag, s) if min_patch_area is None else float(min_patch_area)
-    regions = fitted_regions(
-        V, F, adj=np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(m, 3), pairs=pairs, edges=topo.edges,
-        smooth=smooth, priority=fmeasure, vnormal=ff.normals, area=area, tolerance=tolerance, noise=ff.noise,
-        angle=_normal_angle(V, F, ff, smooth, geom.unit), min_area=min_area, diag=diag, fnormal=geom.unit,
-        corners=geom.corners, centroid=geom.centroid, jobs=default_jobs() if jobs is None else int(jobs),
-    )
-    patch = _patch_ids(regions, area)
+    regions = _fitted_patches(V, F, topo, pairs, geom, ff, threshold, min_patch_area, tolerance, jobs)
+    patch = _patch_ids(regions, geom.area)
     n_patch = int(patch.max()) + 1 if (patch >= 0).any() else 0
     critical = patch < 0
     log.info("%d patches, %d of %d triangles critical", n_patch, int(critical.sum()), m)
 
-    labels = patch.copy()
-    kinds: list[str] = ["patch"] * n_patch
-    sharp: list[bool] = [False] * n_patch
-    sk = SurfaceSkeleton(np.zeros((0, 3)), np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
-    w_min = 0.0 if omega_min is None else float(omega_min)
-    bc = None
-
     if critical.any():
-        # -- 2. boundary curves and potentials ------------------------------------------------------------
-        step("boundary", 0.35)
-        site_curve, site_phi, curve_len = _boundary_potentials(V, F, topo, patch)
-
-        # -- 3. nearest boundary point of every critical vertex ------------------------------------------
-        step("voronoi", 0.45)
-        crit_vert = np.zeros(n, bool)
-        crit_vert[F[critical].ravel()] = True
-        sources = np.flatnonzero(crit_vert & (site_curve >= 0))
-        graph = _edge_graph(V, topo, critical, n)
-        if len(sources):
-            dist, pred, src = dijkstra(graph, directed=False, indices=sources, min_only=True, return_predecessors=True)
-        else:
-            dist, pred, src = np.full(n, _INF), np.full(n, -9999), np.full(n, -9999)
-        reached = src >= 0
-        if omega_min is None:
-            d = dist[crit_vert & reached]
-            w_min = 4.0 * float(np.percentile(d, 90)) if len(d) else 0.0
-            w_min = max(w_min, 4.0 * s)
-
-        # -- 4. skeleton ------------------------------------------------------------------------------------
-        step("skeleton", 0.6)
-        sk_pairs, sk_cross = _skeleton_edges(topo, critical, src, site_curve, site_phi, curve_len, w_min)
-
-        # -- 5. segment graph and parts ----------------------------------------------------------------------
-        step("segment graph", 0.7)
-        cut_keys, junction_faces, terminal_faces, chain_faces = _separators(
-            V, F, sk_pairs, sk_cross, topo, src, dist, graph, s, geom.centroid
-        )
-        part_of_face, part_kind = _cut_parts(m, len(V), pairs, topo, critical, cut_keys, junction_faces,
-                                             terminal_faces, chain_faces)
-        part_of_face = _absorb_orphans(part_of_face, part_kind, pairs, topo, V, patch)
-        # renumber critical parts after the patches, junctions first
-        crit_ids = unique(part_of_face[critical & (part_of_face >= 0)])
-        order = sorted(crit_ids, key=lambda c: (("junction", "linear", "terminal", "patch").index(part_kind[c]), c))
-        remap = {int(c): n_patch + i for i, c in enumerate(order)}
-        for c in order:
-            kinds.append(part_kind[c])
-        # faces absorbed into a patch carry -(patch + 2)
-        absorbed = part_of_face <= -2
-        labels[critical & absorbed] = -part_of_face[critical & absorbed] - 2
-        sel = critical & (part_of_face >= 0)
-        lut = np.full(max(remap, default=-1) + 1, -1, np.int64)
-        for k, v in remap.items():
-            lut[k] = v
-        labels[sel] = lut[part_of_face[sel]]
-        # (only the linear parts' share decides anything: the patches are the largest parts, not measured)
-        mid = _middle_share(V, F, labels, area, len(kinds), geom.unit,
-                            only=[i for i in range(n_patch, len(kinds)) if kinds[i] == "linear"])
-        sharp = [False] * n_patch + [bool(kinds[i] == "linear" and mid[i] < SHARP_MIDDLE_SHARE) for i in range(n_patch, len(kinds))]
-        # a junction is sharp (a corner vertex) when every linear part meeting it is sharp
-        bc = boundary_curves(V, topo, labels, len(kinds))  # the labels are final: the same curves as below
-        nb = bc[1]
-        for i in range(n_patch, len(kinds)):
-            if kinds[i] == "junction":
-                lin = [j for j in nb[i] if kinds[j] == "linear"]
-                sharp[i] = bool(lin) and all(sharp[j] for j in lin)
-        sk = _skeleton_output(V, F, sk_pairs)
-
+        # -- 2.-5. the critical region's skeleton and its parts -----------------------------------------------
+        labels, kinds, sharp, sk, w_min, bc = _critical_parts(V, F, topo, pairs, geom, ff.scale, patch, n_patch,
+                                                              omega_min, step)
+    else:
+        labels, kinds, sharp, bc = patch.copy(), [PartKind.PATCH] * n_patch, [False] * n_patch, None
+        sk = SurfaceSkeleton(np.zeros((0, 3)), np.zeros((0, 2), np.int64), np.zeros(0, np.int64))
+        w_min = 0.0 if omega_min is None else float(omega_min)
     if (labels < 0).any():  # cannot happen by construction; fail loudly rather than emit -1 labels
         raise DecompositionError(f"{int((labels < 0).sum())} triangles were left without a part")
 
     step("curves", 0.9)
     curves, neighbours = bc if bc is not None else boundary_curves(V, topo, labels, len(kinds))
+    parts = _parts(labels, kinds, sharp, neighbours, geom.area)
+    step("done", 1.0)
+    log.info("decomposition: %s", {str(k): sum(p.kind == k for p in parts) for k in PartKind})
+    return Decomposition(
+        labels=labels,
+        parts=parts,
+        curves=curves,
+        skeleton=sk,
+        scale=ff.scale,
+        omega_min=w_min,
+        threshold=threshold,
+        noise=ff.noise,
+        critical=critical,
+        tolerance=float(regions.tolerance),
+        extra={"fits": _part_fits(regions, labels, geom.area, kinds)},
+    )
+
+
+def _checked(threshold, omega_min, jobs) -> float:
+    """The feature threshold (default :data:`DEFAULT_THRESHOLD`), after checking the options :func:`decompose` takes."""
+    threshold = DEFAULT_THRESHOLD if threshold is None else float(threshold)
+    if not 0 < threshold < 1:
+        raise InputError(f"`threshold` must lie in (0, 1), got {threshold}")
+    if omega_min is not None and not omega_min >= 0:
+        raise InputError(f"`omega_min` must be a non-negative length, got {omega_min!r}")
+    if jobs is not None and not (isinstance(jobs, (int, np.integer)) and jobs >= 1):
+        raise InputError(f"`jobs` must be a whole number of processes, at least 1, got {jobs!r}")
+    return threshold
+
+
+def _fitted_patches(V, F, topo: Topology, pairs, geom: FaceGeometry, ff: FeatureField, threshold: float,
+                    min_patch_area, tolerance, jobs) -> Regions:
+    """Step 1: the smooth triangles (feature measure under ``threshold``) seed regions of fitted surfaces
+    (:func:`recon.decompose._regions.fitted_regions`)."""
+    m = len(F)
+    fmeasure = ff.face_measure(F)
+    smooth = fmeasure < threshold
+    diag = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
+    min_area = default_min_area(diag, ff.scale) if min_patch_area is None else float(min_patch_area)
+    return fitted_regions(
+        V, F, adj=np.where(topo.twin >= 0, topo.twin // 3, -1).reshape(m, 3), pairs=pairs, edges=topo.edges,
+        smooth=smooth, priority=fmeasure, vnormal=ff.normals, area=geom.area, tolerance=tolerance, noise=ff.noise,
+        angle=_normal_angle(V, F, ff, smooth, geom.unit), min_area=min_area, diag=diag, fnormal=geom.unit,
+        corners=geom.corners, centroid=geom.centroid, jobs=default_jobs() if jobs is None else int(jobs),
+    )
+
+
+def _critical_parts(V, F, topo: Topology, pairs, geom: FaceGeometry, s: float, patch, n_patch: int, omega_min, step):
+    """Steps 2-5 on the critical region (``patch < 0``): boundary potentials, nearest boundary points, the pruned
+    skeleton, the segment graph and its parts. Returns ``(labels, kinds, sharp, skeleton, ω_min, boundary curves)``.
+    """
+    m, n = len(F), len(V)
+    critical = patch < 0
+    # -- 2. boundary curves and potentials ------------------------------------------------------------
+    step("boundary", 0.35)
+    site_curve, site_phi, curve_len = _boundary_potentials(V, F, topo, patch)
+
+    # -- 3. nearest boundary point of every critical vertex ------------------------------------------
+    step("voronoi", 0.45)
+    crit_vert = np.zeros(n, bool)
+    crit_vert[F[critical].ravel()] = True
+    sources = np.flatnonzero(crit_vert & (site_curve >= 0))
+    graph = _edge_graph(V, topo, critical, n)
+    if len(sources):
+        dist, pred, src = dijkstra(graph, directed=False, indices=sources, min_only=True, return_predecessors=True)
+    else:
+        dist, pred, src = np.full(n, _INF), np.full(n, -9999), np.full(n, -9999)
+    w_min = _default_omega_min(dist[crit_vert & (src >= 0)], s) if omega_min is None else float(omega_min)
+
+    # -- 4. skeleton ------------------------------------------------------------------------------------
+    step("skeleton", 0.6)
+    sk_pairs, sk_cross = _skeleton_edges(topo, critical, src, site_curve, site_phi, curve_len, w_min)
+
+    # -- 5. segment graph and parts ----------------------------------------------------------------------
+    step("segment graph", 0.7)
+    cut_keys, junction_faces, terminal_faces, chain_faces = _separators(
+        V, F, sk_pairs, sk_cross, topo, src, dist, graph, s, geom.centroid
+    )
+    part_of_face, part_kind = _cut_parts(m, n, pairs, topo, critical, cut_keys, junction_faces, terminal_faces,
+                                         chain_faces)
+    part_of_face = _absorb_orphans(part_of_face, part_kind, pairs, topo, V, patch)
+    labels, kinds = _numbered_parts(patch, n_patch, part_of_face, part_kind)
+    bc = boundary_curves(V, topo, labels, len(kinds))  # the labels are final: the same curves as decompose's
+    sharp = _sharp_parts(V, F, labels, geom, kinds, n_patch, bc[1])
+    return labels, kinds, sharp, _skeleton_output(V, F, sk_pairs), w_min, bc
+
+
+def _default_omega_min(dist, s: float) -> float:
+    """§2's ω_min by default: 4 × the 90th percentile of the critical vertices' distance to the nearest patch
+    boundary (``dist``), and at least 4 feature scales."""
+    w_min = 4.0 * float(np.percentile(dist, 90)) if len(dist) else 0.0
+    return max(w_min, 4.0 * s)
+
+
+def _numbered_parts(patch, n_patch: int, part_of_face, part_kind: dict) -> tuple[np.ndarray, list]:
+    """Labels and kinds: the critical parts numbered after the patches, junctions first; faces absorbed into a patch
+    (``part_of_face == -(patch + 2)``) take that patch's id."""
+    critical = patch < 0
+    labels = patch.copy()
+    kinds: list[PartKind] = [PartKind.PATCH] * n_patch
+    crit_ids = unique(part_of_face[critical & (part_of_face >= 0)])
+    order = sorted(crit_ids, key=lambda c: (_PART_ORDER.index(part_kind[c]), c))
+    remap = {int(c): n_patch + i for i, c in enumerate(order)}
+    for c in order:
+        kinds.append(part_kind[c])
+    absorbed = part_of_face <= -2
+    labels[critical & absorbed] = -part_of_face[critical & absorbed] - 2
+    sel = critical & (part_of_face >= 0)
+    lut = np.full(max(remap, default=-1) + 1, -1, np.int64)
+    for k, v in remap.items():
+        lut[k] = v
+    labels[sel] = lut[part_of_face[sel]]
+    return labels, kinds
+
+
+def _sharp_parts(V, F, labels, geom: FaceGeometry, kinds: list, n_patch: int, neighbours) -> list[bool]:
+    """Which parts are sharp: a linear part whose normals jump rather than turn (:data:`SHARP_MIDDLE_SHARE`), and a
+    junction (a corner vertex) whose linear parts are all sharp. Patches never are."""
+    # (only the linear parts' share decides anything: the patches are the largest parts, not measured)
+    mid = _middle_share(V, F, labels, geom.area, len(kinds), geom.unit,
+                        only=[i for i in range(n_patch, len(kinds)) if kinds[i] == PartKind.LINEAR])
+    sharp = [False] * n_patch + [bool(kinds[i] == PartKind.LINEAR and mid[i] < SHARP_MIDDLE_SHARE)
+                                 for i in range(n_patch, len(kinds))]
+    for i in range(n_patch, len(kinds)):
+        if kinds[i] == PartKind.JUNCTION:
+            lin = [j for j in neighbours[i] if kinds[j] == PartKind.LINEAR]
+            sharp[i] = bool(lin) and all(sharp[j] for j in lin)
+    return sharp
+
+
+def _parts(labels, kinds: list, sharp: list, neighbours, area) -> tuple[Part, ...]:
+    """The :class:`Part` records: kind, sharpness, neighbours, triangle count and area of each label."""
     counts = np.bincount(labels, minlength=len(kinds))
     part_area = np.bincount(labels, weights=area, minlength=len(kinds))
-    parts = tuple(
+    return tuple(
         Part(
             id=i,
             kind=kinds[i],
@@ -231,22 +291,6 @@ def decompose(
             area=float(part_area[i]),
         )
         for i in range(len(kinds))
-    )
-    fits = _part_fits(regions, labels, area, kinds)
-    step("done", 1.0)
-    log.info("decomposition: %s", {k: sum(p.kind == k for p in parts) for k in ("patch", "junction", "linear", "terminal")})
-    return Decomposition(
-        labels=labels,
-        parts=parts,
-        curves=curves,
-        skeleton=sk,
-        scale=s,
-        omega_min=w_min,
-        threshold=threshold,
-        noise=ff.noise,
-        critical=critical,
-        tolerance=float(regions.tolerance),
-        extra={"fits": fits},
     )
 
 
@@ -298,7 +342,7 @@ def _part_fits(regions: Regions, labels, area, kinds) -> dict:
         fit = regions.fits[r]
         if fit.type == "free" or not fit or w[p, r] < BLEND_FIT_SHARE * tot[p]:
             continue
-        if (kinds[p] == "patch") == bool(regions.blend[r]):
+        if (kinds[p] == PartKind.PATCH) == bool(regions.blend[r]):
             continue  # a patch on a blend's surface (or the reverse) is not what was fitted for it
         out[p] = fit
     return out
@@ -540,16 +584,16 @@ def _cut_parts(m, n_vertices, pairs, topo, critical, cut_keys, junction_faces, t
         cut = np.zeros(len(keys), bool)
     cut |= ~(critical[pairs[:, 0]] & critical[pairs[:, 1]])
     _, comp = cut_components(m, pairs[:, :2], cut, active=critical)
-    kind: dict[int, str] = {}
+    kind: dict[int, str] = {}  # PartKind, or _ORPHAN until it is absorbed
     for faces_ in junction_faces:
         for c in unique(comp[faces_]):
-            kind[int(c)] = "junction"
+            kind[int(c)] = PartKind.JUNCTION
     for c in unique(comp[chain_faces]):
-        kind.setdefault(int(c), "linear")
+        kind.setdefault(int(c), PartKind.LINEAR)
     for c in unique(comp[terminal_faces]):
-        kind.setdefault(int(c), "terminal")
+        kind.setdefault(int(c), PartKind.TERMINAL)
     for c in unique(comp[critical]):
-        kind.setdefault(int(c), "orphan")
+        kind.setdefault(int(c), _ORPHAN)
     return comp, kind
 
 
@@ -563,7 +607,7 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
     elen = row_norms(V[e[:, 0]] - V[e[:, 1]])
     comp = comp.copy()
     for _ in range(10):
-        orphans = {c for c, k in kind.items() if k == "orphan"}
+        orphans = {c for c, k in kind.items() if k == _ORPHAN}
         if not orphans:
             break
         f, g = pairs[:, 0], pairs[:, 1]
@@ -592,8 +636,8 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
         if not changed:
             break
     for c, k in list(kind.items()):
-        if k == "orphan":
-            kind[c] = "patch"
+        if k == _ORPHAN:
+            kind[c] = PartKind.PATCH
     return comp
 
 

@@ -6,24 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mesh._topology import stable_argsort
+from ..mesh import stable_argsort, unique
 
 __all__ = ["Topology", "topology", "unique"]
-
-
-def unique(x: np.ndarray) -> np.ndarray:
-    """``np.unique(x)`` of an integer array (any shape): the same sorted distinct values, by one sort.
-
-    numpy 2's ``np.unique`` without ``return_*`` goes through a hash table and sorts its output: on the region
-    growing's index arrays (tens to thousands of triangle ids) that is 2-10x slower than sorting them.
-    """
-    y = np.sort(x, axis=None)
-    if len(y) < 2:
-        return y
-    keep = np.empty(len(y), bool)
-    keep[0] = True
-    np.not_equal(y[1:], y[:-1], out=keep[1:])
-    return y[keep]
 
 
 @dataclass(frozen=True)

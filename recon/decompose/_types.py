@@ -3,13 +3,24 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 
 import numpy as np
 
-__all__ = ["PART_KINDS", "Part", "BoundaryCurves", "SurfaceSkeleton", "Decomposition"]
+__all__ = ["PART_KINDS", "Part", "PartKind", "BoundaryCurves", "SurfaceSkeleton", "Decomposition"]
+
+class PartKind(StrEnum):
+    """A part's kind: a smooth patch, or one of the three base types of §3 in the critical region (a value equals
+    its name in reports, ``PartKind.PATCH == "patch"``)."""
+
+    PATCH = "patch"
+    JUNCTION = "junction"
+    LINEAR = "linear"
+    TERMINAL = "terminal"
+
 
 #: Smooth patches, then the three base types of §3 in the critical region.
-PART_KINDS = ("patch", "junction", "linear", "terminal")
+PART_KINDS = tuple(PartKind)
 
 
 @dataclass(frozen=True)
@@ -20,7 +31,7 @@ class Part:
     ----------
     id : int
         The label its triangles carry in ``Decomposition.labels``.
-    kind : str
+    kind : PartKind
         ``"patch"`` (a smooth region one face covers), ``"junction"`` (three or more feature lines
         meet), ``"linear"`` (a feature between two patches) or ``"terminal"`` (a feature that fades out).
     sharp : bool
@@ -33,7 +44,7 @@ class Part:
     """
 
     id: int
-    kind: str
+    kind: PartKind
     sharp: bool
     neighbours: tuple[int, ...]
     n_triangles: int

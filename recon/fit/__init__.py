@@ -5,12 +5,17 @@ from ._noise import default_tolerance, estimate_normals, noise_sigma
 from ._blend import fit_rolling_ball, ruled_surface
 from ._bspline import fit_bspline_surface
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
-from ._select import fit_surface
-from ._geometry import BSplineCurve, BSplineSurface, Circle, Cone, Cylinder, Line, Plane, Sphere, Torus
-from ._types import CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats, within_tolerance
+from ._select import ANALYTIC_FITTERS, MISFIT_SCALE, fit_surface, residual_scale
+from ._quickfit import quick_fit, surface_normals
+from ._geometry import BSplineCurve, BSplineSurface, Circle, Cone, Cylinder, Line, Plane, Sphere, SurfaceKind, Torus
+from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats,
+                     within_tolerance)
 
 __all__ = [
+    "ACCEPT_MAX_FACTOR",
+    "ANALYTIC_FITTERS",
     "CURVE_TYPES",
+    "MISFIT_SCALE",
     "SURFACE_TYPES",
     "BSplineCurve",
     "BSplineSurface",
@@ -23,6 +28,7 @@ __all__ = [
     "Sphere",
     "Torus",
     "SurfaceFit",
+    "SurfaceKind",
     "default_tolerance",
     "deviation_stats",
     "estimate_normals",
@@ -39,6 +45,9 @@ __all__ = [
     "fit_torus",
     "fit_rolling_ball",
     "noise_sigma",
+    "quick_fit",
+    "residual_scale",
     "ruled_surface",
+    "surface_normals",
     "within_tolerance",
 ]

@@ -1,5 +1,7 @@
-"""Surfaces and curves as small frozen dataclasses with a vectorised ``distance``, and their rebuilding from a fit's
-plain ``params`` (:func:`surface_from_params`, :func:`curve_from_params`).
+"""Surfaces and curves as small frozen dataclasses with a vectorised ``distance`` (and, for the analytic surfaces,
+``project``: closest points and normals), and their rebuilding from a fit's plain ``params``
+(:func:`surface_from_params`, :func:`curve_from_params`). This is recon's one geometry model: :mod:`recon.brep`
+projects onto these objects and turns them into OpenCascade surfaces.
 
 Distances are exact Euclidean distances (signed: positive outside / on the normal's side), so a fit's
 residuals are geometric, not algebraic.
@@ -8,6 +10,8 @@ residuals are geometric, not algebraic.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import StrEnum
+from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import BSpline
@@ -17,8 +21,46 @@ from .._array import row_norms, unit
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface
 
-__all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "surface_from_params",
+__all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "SurfaceKind", "surface_from_params",
            "Line", "Circle", "BSplineCurve", "curve_from_params"]
+
+
+class SurfaceKind(StrEnum):
+    """A surface's type: the fitted types, and the other kinds an OpenCascade surface may be (a value equals its
+    report name, ``SurfaceKind.PLANE == "plane"``)."""
+
+    PLANE = "plane"
+    SPHERE = "sphere"
+    CYLINDER = "cylinder"
+    CONE = "cone"
+    TORUS = "torus"
+    BSPLINE = "bspline"
+    BEZIER = "bezier"
+    REVOLUTION = "revolution"
+    EXTRUSION = "extrusion"
+    OFFSET = "offset"
+    OTHER = "other"
+
+
+def _perp(d: np.ndarray) -> np.ndarray:
+    """A unit vector perpendicular to ``d``: the radial direction a point on an axis is given."""
+    a = np.array([1.0, 0, 0]) if abs(d[0]) < 0.9 else np.array([0, 1.0, 0])
+    return unit(np.cross(d, a))
+
+
+def _axis_frame(x: np.ndarray, origin: np.ndarray, d: np.ndarray, perp: np.ndarray):
+    """Height ``h`` (k,) of points ``x`` (k, 3) along the unit axis ``d`` through ``origin``, distance ``rho`` (k,)
+    to the axis, and unit radial direction ``e`` (k, 3) (``perp`` for a point on the axis)."""
+    rel = x - origin
+    h = rel @ d
+    radial = rel - np.outer(h, d)
+    rho = np.linalg.norm(radial, axis=1)
+    e = np.where(rho[:, None] > 1e-12, radial / np.maximum(rho, 1e-300)[:, None], perp)
+    return h, rho, e
+
+
+def _points(points) -> np.ndarray:
+    return np.atleast_2d(np.asarray(points, dtype=np.float64))
 
 
 def _axial_radial(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -40,6 +82,13 @@ class Plane:
         """Signed distance (n,), positive on the normal's side."""
         return (np.asarray(points, dtype=float) - self.origin) @ self.normal
 
+    def project(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points (k, 3) and unit normals (k, 3) for ``points`` (k, 3)."""
+        x = _points(points)
+        n = self.normal
+        q = x - np.outer((x - self.origin) @ n, n)
+        return q, np.broadcast_to(n, x.shape).copy()
+
 
 @dataclass(frozen=True)
 class Sphere:
@@ -51,6 +100,13 @@ class Sphere:
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance (n,), positive outside."""
         return row_norms(np.asarray(points, dtype=float) - self.center) - self.radius
+
+    def project(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points (k, 3) and outward unit normals (k, 3) for ``points`` (k, 3) (+z at the centre)."""
+        w = _points(points) - self.center
+        wn = np.linalg.norm(w, axis=1)
+        u = np.where(wn[:, None] > 1e-12, w / np.maximum(wn, 1e-300)[:, None], np.array([0, 0, 1.0]))
+        return self.center + self.radius * u, u
 
 
 @dataclass(frozen=True)
@@ -65,6 +121,17 @@ class Cylinder:
         """Signed distance (n,), positive outside."""
         _, rho = _axial_radial(np.asarray(points, dtype=float), self.axis_point, self.axis_dir)
         return rho - self.radius
+
+    @cached_property
+    def _axis_perp(self) -> np.ndarray:
+        """The radial direction of a point on the axis, made once (the curve network projects onto a surface often)."""
+        return _perp(self.axis_dir)
+
+    def project(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points (k, 3) and outward unit normals (k, 3) for ``points`` (k, 3)."""
+        d = self.axis_dir
+        h, _, e = _axis_frame(_points(points), self.axis_point, d, self._axis_perp)
+        return self.axis_point + np.outer(h, d) + self.radius * e, e
 
 
 def cone_distance(points: np.ndarray, apex: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
@@ -89,6 +156,21 @@ class Cone:
         """Signed distance (n,), positive outside."""
         return cone_distance(np.asarray(points, dtype=float), self.apex, self.axis_dir, self.half_angle)
 
+    @cached_property
+    def _axis_perp(self) -> np.ndarray:
+        return _perp(self.axis_dir)
+
+    def project(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points (k, 3) on the nappe (the apex for points behind it) and unit normals (k, 3)."""
+        d = self.axis_dir
+        h, rho, e = _axis_frame(_points(points), self.apex, d, self._axis_perp)
+        # in the (rho, h) half-plane about the apex, the generator is g
+        g = np.array([abs(np.sin(self.half_angle)), np.sign(self.half_angle) * np.cos(self.half_angle)])
+        s = np.maximum(rho * g[0] + h * g[1], 0.0)
+        q = self.apex + np.outer(s * g[0], np.ones(3)) * e + np.outer(s * g[1], d)
+        nrm = g[1] * e - g[0] * d[None, :]
+        return q, nrm / np.linalg.norm(nrm, axis=1)[:, None]
+
 
 @dataclass(frozen=True)
 class Torus:
@@ -103,6 +185,20 @@ class Torus:
         """Signed distance (n,) to the tube, positive outside it."""
         h, rho = _axial_radial(np.asarray(points, dtype=float), self.center, self.axis_dir)
         return np.hypot(rho - self.major_radius, h) - self.minor_radius
+
+    @cached_property
+    def _axis_perp(self) -> np.ndarray:
+        return _perp(self.axis_dir)
+
+    def project(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points (k, 3) on the tube and outward unit normals (k, 3) for ``points`` (k, 3)."""
+        x = _points(points)
+        _, _, e = _axis_frame(x, self.center, self.axis_dir, self._axis_perp)
+        ring = self.center + self.major_radius * e
+        w = x - ring
+        wn = np.linalg.norm(w, axis=1)
+        u = np.where(wn[:, None] > 1e-12, w / np.maximum(wn, 1e-300)[:, None], e)
+        return ring + self.minor_radius * u, u
 
 
 def surface_from_params(kind: str, params: dict):

@@ -119,6 +119,78 @@ def _solve_lsq_trust_region(n, m, uf, s, V, Delta, initial_alpha, rtol=0.01, max
     return p, alpha
 
 
+def _soft_l1(f, f_scale: float):
+    """scipy's soft_l1 ``loss_function`` with ``cost_only=False``: ``rho0 * fs², rho1, rho2 / fs²``."""
+    fs2 = f_scale**2
+    t = 1 + (f / f_scale) ** 2
+    rho0 = 2 * (t**0.5 - 1)
+    rho1 = t**-0.5
+    rho2 = -0.5 * t**-1.5
+    rho0 *= fs2
+    rho2 /= fs2
+    return rho0, rho1, rho2
+
+
+def _soft_l1_rho12(t, fs2: float):
+    """:func:`_soft_l1`'s rho1 and rho2 of the same t (its rho0 only feeds the cost: :func:`_soft_l1_cost`)."""
+    rho1 = t**-0.5
+    rho2 = -0.5 * t**-1.5
+    rho2 /= fs2
+    return rho1, rho2
+
+
+def _soft_l1_cost(f, f_scale: float):
+    """``cost_only(f)`` and the t it is made of (:func:`_soft_l1` forms the same t from the same f on a taken step)."""
+    t = 1 + (f / f_scale) ** 2
+    return 0.5 * f_scale**2 * np.add.reduce(2 * (t**0.5 - 1)), t
+
+
+def _col_norms(J):
+    """``(J**2).sum(axis=0) ** 0.5``: numpy sums the rows in order, as einsum does for two or more C-ordered columns
+    (a third of the cost of reducing over rows of 4-7)."""
+    if J.shape[1] >= 2 and J.flags.c_contiguous:
+        return np.einsum("ij,ij->j", J, J) ** 0.5
+    return (J**2).sum(axis=0) ** 0.5
+
+
+def _scale_for_loss(J, f, rho1, rho2):
+    """scipy's ``scale_for_robust_loss_function``: J and f scaled in place."""
+    J_scale = rho1 + 2 * rho2 * f**2
+    J_scale[J_scale < _EPS] = _EPS
+    J_scale **= 0.5
+    f *= rho1 / J_scale
+    J *= J_scale[:, np.newaxis]
+    return J, f
+
+
+def _tr_radius(Delta: float, actual_reduction, predicted_reduction, step_h_norm: float):
+    """scipy's ``update_tr_radius``: the next trust radius and the reduction ratio."""
+    if predicted_reduction > 0:
+        ratio = actual_reduction / predicted_reduction
+    elif predicted_reduction == actual_reduction == 0:
+        ratio = 1
+    else:
+        ratio = 0
+    if ratio < 0.25:
+        return 0.25 * step_h_norm, ratio
+    if ratio > 0.75 and step_h_norm > 0.95 * Delta:
+        return Delta * 2.0, ratio
+    return Delta, ratio
+
+
+def _termination(actual_reduction, cost, ratio, step_norm: float, x_norm: float, ftol: float, xtol: float):
+    """scipy's ``check_termination``: 4 (ftol and xtol), 2 (ftol), 3 (xtol) or None."""
+    ftol_satisfied = actual_reduction < ftol * cost and ratio > 0.25
+    xtol_satisfied = step_norm < xtol * (xtol + x_norm)
+    if ftol_satisfied and xtol_satisfied:
+        return 4
+    if ftol_satisfied:
+        return 2
+    if xtol_satisfied:
+        return 3
+    return None
+
+
 def trf_soft_l1(fun, jac, x0, f0, J0, f_scale: float, max_nfev: int, ftol=1e-8, xtol=1e-8, gtol=1e-8):
     """``trf_no_bounds(fun, jac, x0, f0, J0, ftol, xtol, gtol, max_nfev, "jac", soft_l1 loss, "exact", {}, 0)``.
 
@@ -127,44 +199,6 @@ def trf_soft_l1(fun, jac, x0, f0, J0, f_scale: float, max_nfev: int, ftol=1e-8, 
     SVD raises (``ValueError`` on non-finite Jacobians, ``LinAlgError`` when it does not converge).
     """
     fs2 = f_scale**2
-
-    def loss_full(f):
-        # soft_l1 (scipy's loss_function with cost_only=False): rho0 * fs², rho1, rho2 / fs²
-        t = 1 + (f / f_scale) ** 2
-        rho0 = 2 * (t**0.5 - 1)
-        rho1 = t**-0.5
-        rho2 = -0.5 * t**-1.5
-        rho0 *= fs2
-        rho2 /= fs2
-        return rho0, rho1, rho2
-
-    def rho12(t):
-        # loss_full's rho1 and rho2 of the same t (its rho0 only feeds the cost, which the loop takes from cost_t)
-        rho1 = t**-0.5
-        rho2 = -0.5 * t**-1.5
-        rho2 /= fs2
-        return rho1, rho2
-
-    def cost_t(f):
-        # cost_only(f) and the t it is made of (loss_full forms the same t from the same f when the step is taken)
-        t = 1 + (f / f_scale) ** 2
-        return 0.5 * f_scale**2 * np.add.reduce(2 * (t**0.5 - 1)), t
-
-    def col_norms(J):
-        # (J**2).sum(axis=0) ** 0.5: numpy sums the rows in order, as einsum does for two or more C-ordered columns
-        # (a third of the cost of reducing over rows of 4-7)
-        if J.shape[1] >= 2 and J.flags.c_contiguous:
-            return np.einsum("ij,ij->j", J, J) ** 0.5
-        return (J**2).sum(axis=0) ** 0.5
-
-    def scale_for_loss(J, f, rho1, rho2):
-        J_scale = rho1 + 2 * rho2 * f**2
-        J_scale[J_scale < _EPS] = _EPS
-        J_scale **= 0.5
-        f *= rho1 / J_scale
-        J *= J_scale[:, np.newaxis]
-        return J, f
-
     x = x0.copy()
     f = f0
     f_true = f.copy()
@@ -173,12 +207,12 @@ def trf_soft_l1(fun, jac, x0, f0, J0, f_scale: float, max_nfev: int, ftol=1e-8, 
     njev = 1
     m, n = J.shape
 
-    rho0, rho1, rho2 = loss_full(f)
+    rho0, rho1, rho2 = _soft_l1(f, f_scale)
     cost = 0.5 * rho0.sum()
-    J, f = scale_for_loss(J, f, rho1, rho2)
+    J, f = _scale_for_loss(J, f, rho1, rho2)
     g = J.T.dot(f)
 
-    scale_inv = col_norms(J)
+    scale_inv = _col_norms(J)
     scale_inv[scale_inv == 0] = 1
     scale = 1 / scale_inv
 
@@ -220,33 +254,10 @@ def trf_soft_l1(fun, jac, x0, f0, J0, f_scale: float, max_nfev: int, ftol=1e-8, 
                 Delta = 0.25 * step_h_norm
                 continue
 
-            cost_new, t_new = cost_t(f_new)
+            cost_new, t_new = _soft_l1_cost(f_new, f_scale)
             actual_reduction = cost - cost_new
-
-            # update_tr_radius
-            if predicted_reduction > 0:
-                ratio = actual_reduction / predicted_reduction
-            elif predicted_reduction == actual_reduction == 0:
-                ratio = 1
-            else:
-                ratio = 0
-            if ratio < 0.25:
-                Delta_new = 0.25 * step_h_norm
-            elif ratio > 0.75 and step_h_norm > 0.95 * Delta:
-                Delta_new = Delta * 2.0
-            else:
-                Delta_new = Delta
-
-            step_norm = _norm(step)
-            # check_termination
-            ftol_satisfied = actual_reduction < ftol * cost and ratio > 0.25
-            xtol_satisfied = step_norm < xtol * (xtol + _norm(x))
-            if ftol_satisfied and xtol_satisfied:
-                termination_status = 4
-            elif ftol_satisfied:
-                termination_status = 2
-            elif xtol_satisfied:
-                termination_status = 3
+            Delta_new, ratio = _tr_radius(Delta, actual_reduction, predicted_reduction, step_h_norm)
+            termination_status = _termination(actual_reduction, cost, ratio, _norm(step), _norm(x), ftol, xtol)
             if termination_status is not None:
                 break
 
@@ -260,10 +271,10 @@ def trf_soft_l1(fun, jac, x0, f0, J0, f_scale: float, max_nfev: int, ftol=1e-8, 
             cost = cost_new
             J = jac(x)
             njev += 1
-            rho1, rho2 = rho12(t_new)  # t_new: f_new's, and f is f_new
-            J, f = scale_for_loss(J, f, rho1, rho2)
+            rho1, rho2 = _soft_l1_rho12(t_new, fs2)  # t_new: f_new's, and f is f_new
+            J, f = _scale_for_loss(J, f, rho1, rho2)
             g = J.T.dot(f)
-            scale_inv = np.maximum(col_norms(J), scale_inv)
+            scale_inv = np.maximum(_col_norms(J), scale_inv)
             scale = 1 / scale_inv
 
     if termination_status is None:

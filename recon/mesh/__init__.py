@@ -2,6 +2,7 @@
 
 from ._clean import DEFAULT_WELD_RELATIVE, clean_mesh, input_labels
 from ._load import SUPPORTED_FORMATS, load_mesh, read_triangles
+from ._topology import stable_argsort, unique, unique_first
 from ._types import CleanReport, Mesh, VertexFaces
 
 __all__ = [
@@ -14,4 +15,7 @@ __all__ = [
     "input_labels",
     "load_mesh",
     "read_triangles",
+    "stable_argsort",
+    "unique",
+    "unique_first",
 ]

@@ -10,11 +10,9 @@ from functools import cached_property
 import numpy as np
 
 from .._array import row_norms, unique_inverse
-from ..fit import SurfaceFit, fit_plane, fit_surface
+from ..fit import MISFIT_SCALE, SurfaceFit, fit_plane, fit_surface, residual_scale
 from .._tolerance import SIGMAS_PER_TOLERANCE
-from ..fit._select import MISFIT_SCALE, residual_scale
-from ..mesh import Mesh
-from ..mesh._topology import stable_argsort
+from ..mesh import Mesh, stable_argsort
 from ._labels import vertices_of
 
 __all__ = ["SegmentContext", "exact_vertices", "fit_members", "fit_parts", "fit_triangles", "misfits",
@@ -44,7 +42,7 @@ EXACT_MISFIT = 0.05
 #: tolerance (round-off is many orders below it; a remeshed model's vertices lie a share of the tolerance off).
 EXACT_RESIDUAL = 0.001
 #: A triangle lies on a face's surface when its vertices are within tolerance of it and its normal within this
-#: angle of the surface's (the angle :func:`recon.decompose._regions.split_by_fitting` grows regions with): well
+#: angle of the surface's (the angle :func:`recon.decompose.split_by_fitting` grows regions with): well
 #: above the normals' scatter under a noise of a quarter of the tolerance, well below a chamfer's 45° turn.
 GROW_ANGLE_DEG = 30.0
 #: A noise-free part's own normal replaces the mesh's vertex normal where the two differ by more than this: the
@@ -203,7 +201,7 @@ def own_normals(V: np.ndarray, tris: np.ndarray, local: np.ndarray, k: int) -> n
     on a sharp edge (a hole's strips run from one end circle to the other), where the mesh's vertex normals
     average in the faces beyond the edge: from them a hole's cylinder axis comes out tilted, from the part's own
     triangles it fits to round-off. (The decomposition's region fits use the same rule,
-    :func:`recon.decompose._regions._region_normals`.) Only the analytic fitters get them: a B-spline over a part
+    :func:`recon.decompose._regionfit._region_normals`.) Only the analytic fitters get them: a B-spline over a part
     that is several faces parametrises better over the mesh's normals.
     """
     fn = np.cross(V[tris[:, 1]] - V[tris[:, 0]], V[tris[:, 2]] - V[tris[:, 0]])  # length: twice the area

@@ -9,10 +9,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..decompose._quickfit import surface_normals
-from ..fit import fit_plane
-from ..fit._select import MISFIT_SCALE, residual_scale
-from ..fit._types import ACCEPT_MAX_FACTOR
+from ..fit import ACCEPT_MAX_FACTOR, MISFIT_SCALE, fit_plane, residual_scale, surface_normals
 from ._context import (ANALYTIC, EXACT_MISFIT, EXACT_RESIDUAL, GROW_ANGLE_DEG, MIN_FLAT_VERTICES, MIN_PART_VERTICES,
                        SegmentContext, fit_parts)
 from ._labels import drawn_flat, vertex_sets

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from ..decompose._topology import unique
+from ..mesh import unique
 
 __all__ = ["absorb", "coplanar_pieces", "drawn_flat", "majority_neighbour", "one_label", "split_disconnected",
            "vertex_counts", "vertex_sets", "vertices_of", "DRAWN_AREA_RATIO"]

@@ -9,8 +9,7 @@ import logging
 import numpy as np
 
 from .._array import unit
-from ..decompose._quickfit import quick_fit
-from ..fit._select import residual_scale
+from ..fit import quick_fit, residual_scale
 from ._context import ANALYTIC, EXACT_MISFIT, SegmentContext, exact_vertices, fit_members, misfits
 
 __all__ = ["merge_round_bands", "merge_same_surface", "one_centre"]

@@ -9,9 +9,8 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from ..decompose._regions import split_by_fitting
-from ..decompose._quickfit import surface_normals
-from ..fit import fit_plane
+from ..decompose import split_by_fitting
+from ..fit import fit_plane, surface_normals
 from ._context import (ANALYTIC, CURVED, GROW_ANGLE_DEG, MIN_CORNER_VERTICES, MIN_PART_VERTICES, SegmentContext,
                        exact_vertices, fit_members, fit_parts)
 from ._labels import absorb, coplanar_pieces
@@ -59,7 +58,7 @@ def split_unfitted(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.nd
 
     The decomposition can leave several faces in one part: a ring of fillets meeting at a pocket's sharp
     corners is one linear part (the skeleton has no junction there), and no one surface fits it. Regions
-    grown from seeds inside such a part (:func:`recon.decompose._regions.split_by_fitting`) that together
+    grown from seeds inside such a part (:func:`recon.decompose.split_by_fitting`) that together
     cover :data:`SPLIT_COVER` of its area become faces of their own; the few triangles between them join
     the region they touch most. The split is kept only if every piece then fits its surface within
     tolerance. Returns ``labels`` itself when nothing was split.
@@ -145,8 +144,9 @@ def trim_to_surface(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.n
 
     Under noise a face can take in slivers of its neighbours (a chamfer's edge on a large plane): one plane
     no longer fits it, a B-spline does, and the plane becomes a free-form face — or a curved surface bends
-    to take the slivers in within tolerance (a chamfer and a box face as cones and cylinders). When one analytic region grown inside the face (for a curved face, a plane region;
-    :func:`recon.decompose._regions.split_by_fitting`) covers :data:`TRIM_COVER` of its area, the rest goes
+    to take the slivers in within tolerance (a chamfer and a box face as cones and cylinders). When one
+    analytic region grown inside the face (for a curved face, a plane region;
+    :func:`recon.decompose.split_by_fitting`) covers :data:`TRIM_COVER` of its area, the rest goes
     to the neighbouring face whose surface passes nearest; the trim is kept only if the face then fits an
     analytic surface (for a curved face, a plane) and every face that received triangles still fits its own
     type within tolerance. A piece of the rest that is a planar face of its own (:func:`planar_pieces`: a

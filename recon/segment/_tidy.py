@@ -9,7 +9,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..fit import SurfaceFit, fit_plane
-from ..mesh._topology import unique_first
+from ..mesh import unique_first
 from ._context import CURVED, MIN_CORNER_VERTICES, MIN_FLAT_VERTICES, MIN_PART_VERTICES, SegmentContext, fit_parts
 from ._labels import absorb, coplanar_pieces, drawn_flat, split_disconnected, vertex_counts
 

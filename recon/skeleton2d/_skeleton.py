@@ -482,26 +482,8 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     t, u = pairs[:, 0], pairs[:, 1]
     s0, s1 = tri.sites[:, 0], tri.sites[:, 1]  # the two sites of each Voronoi edge
 
-    # contract coincident circumcentres (co-circular samples) into one skeleton vertex
-    cluster = np.arange(m)
-    short = np.flatnonzero(np.linalg.norm(cc[t] - cc[u], axis=1) <= MERGE_TOL * spacing)
-    if len(short):
-        nodes, inv = np.unique(np.r_[t[short], u[short]], return_inverse=True)
-        g = coo_matrix((np.ones(len(short), np.int8), (inv[:len(short)], inv[len(short):])), shape=(len(nodes),) * 2)
-        n_cl, lab = connected_components(g, directed=False)
-        rep_node = np.full(n_cl, m, dtype=np.int64)
-        np.minimum.at(rep_node, lab, nodes)
-        cluster[nodes] = rep_node[lab]
-    ct, cu = cluster[t], cluster[u]
-    real = kept & (ct != cu)
-    ekey, rep, edge_of = np.unique(np.minimum(ct[real], cu[real]) * m + np.maximum(ct[real], cu[real]),
-                                   return_index=True, return_inverse=True)
-    if len(ekey) < int(real.sum()):
-        log.debug("skeletonize: %d parallel skeleton edges merged", int(real.sum()) - len(ekey))
-    used = np.unique(np.r_[ekey // m, ekey % m])
-    vid = np.full(m, -1, dtype=np.int64)
-    vid[used] = np.arange(len(used))
-    edges = np.stack([vid[ekey // m], vid[ekey % m]], axis=1).reshape(-1, 2)
+    cluster = _coincident_clusters(cc, t, u, spacing)
+    real, rep, edge_of, used, vid, edges = _skeleton_edges(cluster, kept, t, u)
 
     # §3: degrees, bridges, parts
     degree = sg.vertex_degree(edges, len(used))
@@ -510,17 +492,11 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
     cut[np.flatnonzero(real)] = bridge[edge_of]
     n_parts, label = sg.cut_components(m, pairs, cut, active=inside)
 
-    # a body without any skeleton edge (a disk, or ω_min too large) is one part without a vertex: give it one,
-    # the centre of the largest empty circle that lies in its own (acute) triangle, hence inside the body
+    # a body without any skeleton edge is one part without a vertex: give it one
     tri_vertex = np.where(inside, vid[cluster], -1)  # skeleton vertex of each triangle, -1: none
     part_has = np.bincount(label[tri_vertex >= 0], minlength=n_parts) > 0
     if not part_has.all():
-        lonely = np.flatnonzero(inside & ~part_has[np.maximum(label, 0)])
-        q = points[simp[lonely]]
-        acute = np.all(np.einsum("tij,tij->ti", np.roll(q, -1, axis=1) - q, np.roll(q, 1, axis=1) - q) >= 0, axis=1)
-        score = np.where(acute, rr[lonely], -1.0 / (1.0 + rr[lonely]))
-        o = lonely[np.lexsort((-score, label[lonely]))]
-        best = cluster[o[np.r_[True, label[o][1:] != label[o][:-1]]]]
+        best = _one_point_skeletons(points, simp, inside, part_has, label, rr, cluster)
         vid[best] = len(used) + np.arange(len(best))
         used = np.r_[used, best]
         degree = np.r_[degree, np.zeros(len(best), dtype=np.int64)]
@@ -559,6 +535,53 @@ def skeletonize(shape: Shape2D, *, omega_min: float | None = None, spacing: floa
         extra={"triangles": simp, "triangle_part": label, "refine_rounds": tri.rounds, "inserted_points": tri.inserted,
                "encroached_edges": tri.encroached},
     )
+
+
+def _coincident_clusters(cc: np.ndarray, t: np.ndarray, u: np.ndarray, spacing: float) -> np.ndarray:
+    """(m,) int: each triangle's representative among the triangles whose circumcentres coincide with its own (within
+    :data:`MERGE_TOL` spacings, across Voronoi edges ``t``–``u``): co-circular samples make one skeleton vertex."""
+    m = len(cc)
+    cluster = np.arange(m)
+    short = np.flatnonzero(np.linalg.norm(cc[t] - cc[u], axis=1) <= MERGE_TOL * spacing)
+    if len(short):
+        nodes, inv = np.unique(np.r_[t[short], u[short]], return_inverse=True)
+        g = coo_matrix((np.ones(len(short), np.int8), (inv[:len(short)], inv[len(short):])), shape=(len(nodes),) * 2)
+        n_cl, lab = connected_components(g, directed=False)
+        rep_node = np.full(n_cl, m, dtype=np.int64)
+        np.minimum.at(rep_node, lab, nodes)
+        cluster[nodes] = rep_node[lab]
+    return cluster
+
+
+def _skeleton_edges(cluster: np.ndarray, kept: np.ndarray, t: np.ndarray, u: np.ndarray):
+    """The skeleton's edges: the kept Voronoi edges between different clusters, parallel ones merged.
+
+    Returns ``real`` (which pairs are skeleton edges), ``rep`` and ``edge_of`` (``np.unique``'s index and inverse
+    of their keys: a representative pair per edge, the edge of each real pair), the clusters ``used`` as vertices,
+    ``vid`` (triangle -> vertex, -1) and ``edges (e, 2)`` in vertex ids."""
+    m = len(cluster)
+    ct, cu = cluster[t], cluster[u]
+    real = kept & (ct != cu)
+    ekey, rep, edge_of = np.unique(np.minimum(ct[real], cu[real]) * m + np.maximum(ct[real], cu[real]),
+                                   return_index=True, return_inverse=True)
+    if len(ekey) < int(real.sum()):
+        log.debug("skeletonize: %d parallel skeleton edges merged", int(real.sum()) - len(ekey))
+    used = np.unique(np.r_[ekey // m, ekey % m])
+    vid = np.full(m, -1, dtype=np.int64)
+    vid[used] = np.arange(len(used))
+    edges = np.stack([vid[ekey // m], vid[ekey % m]], axis=1).reshape(-1, 2)
+    return real, rep, edge_of, used, vid, edges
+
+
+def _one_point_skeletons(points, simp, inside, part_has, label, rr, cluster) -> np.ndarray:
+    """The skeleton vertex (a triangle's cluster) of each body without a skeleton edge (a disk, or ω_min too large):
+    the centre of its largest empty circle that lies in its own (acute) triangle, hence inside the body."""
+    lonely = np.flatnonzero(inside & ~part_has[np.maximum(label, 0)])
+    q = points[simp[lonely]]
+    acute = np.all(np.einsum("tij,tij->ti", np.roll(q, -1, axis=1) - q, np.roll(q, 1, axis=1) - q) >= 0, axis=1)
+    score = np.where(acute, rr[lonely], -1.0 / (1.0 + rr[lonely]))
+    o = lonely[np.lexsort((-score, label[lonely]))]
+    return cluster[o[np.r_[True, label[o][1:] != label[o][:-1]]]]
 
 
 def _assemble_parts(points, simp, nb, label, n_parts, kinds, vpart, edges, bridge, nxt) -> tuple[Part2D, ...]:

@@ -1,5 +1,8 @@
 """Closed-form analytic surface fits and surface normals, for the many small fits of region growing.
 
+Deliberately not the fitters of :mod:`._primitives`: their closed-form starts and two Gauss–Newton steps, without
+the robust least squares, are what region growing can afford thousands of times (the fitter runs when they come near).
+
 :mod:`recon.fit` refines every fit by robust least squares (``scipy.optimize.least_squares``), which costs
 milliseconds per call; region growing makes thousands of fits, most of them on small seed discs or on regions
 that changed by a few rings. The closed-form *starts* of those fitters (the same constructions, see
@@ -22,11 +25,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import FitError
-from ..fit import SurfaceFit
-from ..fit._select import ANALYTIC_FITTERS
 from .._array import axis_helper, col_means, columns as _columns, cross3, extent, row_norms, row_sums
-from ..fit._types import deviation_stats, percentile as _percentile, within_tolerance
+from ..errors import FitError
+from ._select import ANALYTIC_FITTERS
+from ._types import SurfaceFit, deviation_stats, percentile as _percentile, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
 
