@@ -114,8 +114,8 @@ class BrepDistance:
             raise InputError("shape: expected a non-null TopoDS_Shape")
         # Measured on a copy without the shape's triangulation: BRepMesh refines an existing one instead of
         # starting afresh, so the result depended on what had meshed the shape before, and on a B-rep with a
-        # face it cannot mesh (pocket noisy20's, after the deviation stage had meshed it) re-meshing took
-        # 270 s and 0.8-3.9 GB, where a fresh copy takes 0.4 s and 10 MB.
+        # face it cannot mesh re-meshing took minutes and gigabytes, where a fresh copy takes a fraction of a
+        # second.
         shape = BRepBuilderAPI_Copy(shape, True, False).Shape()
         self.faces = faces_of(shape)
         if not self.faces:

@@ -85,7 +85,7 @@ class SurfaceModel:
     geom: Geom_Surface
     surface: Plane | Sphere | Cylinder | Cone | Torus | None = None
     #: Projections onto a free-form ``geom`` by point (its bytes): the network's alternating projections and
-    #: refinement ask for the same point again (rocker-arm2500: 28 % of 17,063), and each costs ~2 ms.
+    #: refinement ask for the same point again, and each costs ~2 ms.
     _memo: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
@@ -169,8 +169,7 @@ def project_occ(geom: Geom_Surface, points, *, memo: dict | None = None) -> tupl
 
     ``memo`` (point bytes → (closest point, normal)) holds earlier answers on this ``geom``: a projection is
     initialised afresh for every point, so an answer depends on the point alone. (Initialising once per surface
-    and calling ``Perform`` per point is 2× faster but lands on a farther local minimum for some points:
-    23 of 17,063 on rocker-arm2500, by up to 2e-4.)
+    and calling ``Perform`` per point is 2× faster but lands on a farther local minimum for some points.)
     """
     x = np.atleast_2d(np.asarray(points, dtype=np.float64))
     q = np.empty_like(x)

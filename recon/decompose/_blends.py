@@ -99,7 +99,7 @@ def _islands(ctx: _Ctx, label, fits, prim, comp, area, tangent) -> dict:
     A primary region tangent all round to the non-primary triangles it borders (median angle < TANGENT_DEG
     between its surface's normal and their smoothed normals) and small beside them (under ISLAND_SHARE of the
     largest component it touches) is a patch that an analytic surface happened to cover on a free-form face
-    (the lofted side's stray cylinders: about 1 % of it each). A primary tangent to a primary that is not an
+    (stray cylinders of about 1 % of a free-form face each). A primary tangent to a primary that is not an
     island (a face and its fillet's neighbour) is not one either. The raw triangle normals would carry the
     noise (σ = 0.2 % of the diagonal turns them by 10–20°): the smoothed vertex normals stand in for them.
     """
@@ -175,8 +175,7 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
     it hands to that region}) (see :func:`_rounded_edges`).
 
     Step 1 keeps a smooth component no analytic surface explains as one free-form patch, but a free-form face
-    curved everywhere at the scale of the smoothing window (the lofted side: 0.6 % of it smooth on the clean
-    mesh) has no smooth component: the seeds tile it with small cylinders, each tangent to its neighbours and so
+    curved everywhere at the scale of the smoothing window has no smooth component: the seeds tile it with small cylinders, each tangent to its neighbours and so
     a "blend", and the skeleton cuts the lot into some forty parts. What tells it from a network of fillets is
     how it meets the faces around it: a fillet is tangent to the faces it joins, this face meets them at sharp
     edges. A connected set of non-primary triangles (critical or blend, joined through :func:`_islands`) is
@@ -189,7 +188,7 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
         them: the analytic fitters could only tile it;
     (d) its area is at least ``min_area``;
     (e) it is smooth inside: at most MAX_CREASE_SHARE of the borders between its tiles are sharp (a chain of
-        analytic faces with creases between them, revolved/noisy20's side, is not one free-form face).
+        analytic faces with creases between them is not one free-form face).
     """
     m, k = len(label), len(fits)
     f, g, e = ctx.pairs[:, 0], ctx.pairs[:, 1], ctx.pairs[:, 2]
@@ -240,7 +239,7 @@ def _free_forms(ctx: _Ctx, label: np.ndarray, fits: list, blend: np.ndarray, are
         inside = merged == c
         # (a): the primary regions it borders, each by its median angle. Inside, the normal is that of the tile
         # the border triangle lies on where it has one (the smoothed normals blur a tangent border with a small
-        # radius: revolved/noisy05's torus met its plane at 19.5° by them), else the smoothed one
+        # radius into an angle), else the smoothed one
         border = np.flatnonzero(inside[f] != inside[g])
         out_tri = np.where(inside[f[border]], g[border], f[border])
         in_tri = np.where(inside[f[border]], f[border], g[border])
@@ -272,8 +271,8 @@ def _rounded_edges(ctx: _Ctx, label, fits, faces, angles, tangent, group_area, r
     """The free-form face's triangles with the slivers the noise rounded along its sharp edges, and what of
     them goes to the face on the other side: ``(faces, {region: triangles})``.
 
-    Under noise a sharp edge looks like a small fillet, and a curved region may cover it (lofted/noisy20: a
-    19-triangle cylinder of radius 2 along the top edge). A fillet is tangent to both faces it joins; a small
+    Under noise a sharp edge looks like a small fillet, and a curved region may cover it (a thin cylinder
+    along the edge). A fillet is tangent to both faces it joins; a small
     curved region tangent to one primary only and meeting the free-form face at a sharp angle is that rounded
     edge: its triangles on the tangent primary's surface (within tolerance) go to that primary, the rest to
     the free-form face.

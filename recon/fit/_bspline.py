@@ -178,7 +178,7 @@ def _cylindrical(points: np.ndarray, faces: np.ndarray):
     # Two choices of v. The height along the axis is exact for a loft between parallel planes and undisturbed by
     # holes, but crowds the points where the band turns flat (a fillet ring at a pocket's floor); the harmonic
     # map between the loops (0 on one, 1 on the other, a hole's border free; scaled to the band's width) spreads
-    # those evenly but bends around a hole (lofted/open: p99 0.029 against 0.013 by height)
+    # those evenly but bends around a hole
     harmonic = _harmonic_between(len(points), edges, loops[0], loops[1])
     width = float(np.mean(cKDTree(points[loops[0]]).query(points[loops[1]])[0]))
     return [np.column_stack([u, v]), np.column_stack([u, harmonic * width])], float(np.mean(lengths))

@@ -124,8 +124,8 @@ def _bspline_pinned(pts, *, closed: bool, tolerance: float, degree: int = 3) -> 
 
     A plain least-squares spline with as many control points as data points interpolates the projected
     polyline, and where those points zigzag (noise, or neighbours that fell back to different projections)
-    it overshoots between them by orders of magnitude: seen on box_fillet noisy20, edges thousands of mm off
-    a 70 mm part although they passed through every data point. So the control points are capped at one per
+    it overshoots between them by orders of magnitude (edges many part sizes off, although they pass through
+    every data point). So the control points are capped at one per
     :data:`_POINTS_PER_SPAN` data points and a small second-difference penalty keeps every span determined
     (Eilers & Marx, P-splines). The residual is measured on the curve densely sampled against the polyline,
     not only at the data points: it is what the B-rep builder and the report can trust.
@@ -185,8 +185,8 @@ def _backtracks(curve, pts, t, *, per_span: int = 4) -> bool:
     """True where the curve runs against the polyline's local direction (a loop, or a cusp and a turn back).
 
     The direction is the chord over three segments about each one, so that one noisy point does not count
-    as a reversal. Seen on rocker-arm2500: a cubic through six zigzagging points formed a loop, and the
-    face it bounded was a self-intersecting wire.
+    as a reversal: a cubic through a few zigzagging points can form a loop, and the face it bounds has a
+    self-intersecting wire.
     """
     n = len(pts)
     w = np.linspace(0.0, 1.0, per_span, endpoint=False)

@@ -172,8 +172,8 @@ def _nearest_segment(x, pts) -> np.ndarray:
 def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float, iterations: int, max_points: int):
     """The edge polyline with points added where a chord strays more than ``tolerance`` from the edge.
 
-    A mesh made by a CAD tessellator has long triangles: an edge between two spheres on crank is one mesh
-    segment 0.55 long on a sphere of radius 0.4, a chord 0.11 inside the surfaces (88 tolerances). Fitted as
+    A mesh made by a CAD tessellator has long triangles: an edge between two curved faces can be one mesh
+    segment, a chord many tolerances inside the surfaces. Fitted as
     the line through its two points, the edge lies that far off both faces, ShapeFix raises its tolerance to
     match, and the face's wire intersects itself in the surface's parameters. Each round moves the midpoint
     of every chord longer than ``tolerance`` onto the edge (:func:`_onto_edge`) and keeps it where it moved
@@ -198,9 +198,8 @@ def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float
         # 0.21 of its chord, a half circle's 0.5.
         moved = np.linalg.norm(on - mids, axis=1)
         off = (moved > tolerance) & (moved <= 0.5 * seg[long]) & (gap <= tolerance)
-        # and onto the part of the edge between the chord's ends, not onto another stretch of the same edge: on
-        # crank a plane cuts a sphere in a circle, one edge runs along its arc and back across a chord of it,
-        # and the chord's midpoint went to the arc (the nearest point of the circle), so the wire crossed itself.
+        # and onto the part of the edge between the chord's ends, not onto another stretch of the same edge (an
+        # edge along an arc and back across its chord would send the chord's midpoint to the arc: a crossed wire).
         # (Nearer a chord's neighbour is allowed: beside a sharp turn an arc can bulge towards the next chord.)
         off &= np.abs(_nearest_segment(on, pts) - long) <= 1
         if not off.any():
@@ -328,21 +327,15 @@ def _strays(curve: EdgeCurve, pts, left: int, right: int, project: Projector, to
     quadratic through 3 points has nothing to smooth, its shape between them is the points' spacing alone.
     Then the polyline is the better edge.
 
-    A CAD tessellation's edges can be a few points with chords of very different lengths. On crank the edge
-    between a torus and a plane that do not meet there is 3 points, a chord 147 tolerances long and one of 5:
-    the quadratic through them bows 35 tolerances sideways, across the plane's hole, 5.7 tolerances off the
-    surfaces on average (the chord, 7.4, cannot be refined: no point near its middle lies on both surfaces), and
-    the plane's wire crosses itself. Between a cylinder and a sphere that meet at a grazing angle the 64 points
-    zigzag and the best spline is 98 tolerances off them and 25 off the surfaces (the points 1.1); beside them
-    3 and 4 points whose quadratic and cubic bow 17 and 28 tolerances out, 0.8 and 1.2 tolerances off the
-    surfaces where the chords are 0.3 and 0.2 off. A curve nearer the surfaces than its chords is kept: through
-    sparse points on an arc the chords are a sagitta inside it; across a zigzag seam cut through one sphere (no
-    intersection to follow) the smooth loop is 0.15 tolerances off the sphere, the zigzag 0.63. So are curves of
-    more points that are off the surfaces but nearer them than their chords (casting: 4 to 8 points between
-    surfaces 1 to 16 tolerances apart): replaced, they moved its deviations both ways. The caller asks only
-    where both surfaces are fitted within tolerance (``refine``): box_fillet coarse's B-splines out of
-    tolerance lie 8 to 19 tolerances off their edges' points, and its fillings, bounded by the polylines,
-    reached twice as far from the mesh (ours to mesh p95 6.3 to 28 % of the diagonal).
+    A CAD tessellation's edges can be a few points with chords of very different lengths: the quadratic through
+    3 such points can bow many tolerances sideways, across a face's hole, and the face's wire crosses itself;
+    where two surfaces meet at a grazing angle the points zigzag and the best spline is farther off the surfaces
+    than the points. A curve nearer the surfaces than its chords is kept: through sparse points on an arc the
+    chords are a sagitta inside it; across a zigzag seam cut through one surface (no intersection to follow)
+    the smooth loop is nearer it than the zigzag. So are curves of more points that are off the surfaces but
+    nearer them than their chords. The caller asks only where both surfaces are fitted within tolerance
+    (``refine``): a B-spline out of tolerance lies far off its edges' points, and fillings bounded by such
+    polylines reach farther from the mesh. The measurements behind each case are in bench/evidence.md.
     """
     if curve.kind != "bspline" or int(curve.params["degree"]) < 2 or len(pts) < 3:
         return False
