@@ -223,13 +223,13 @@ def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
         v = (d11 * d20 - d01 * d21) / den
         w = (d00 * d21 - d01 * d20) / den
     inside = (v >= 0) & (w >= 0) & (v + w <= 1)
-    edge = None
+    to_sides = []
     for start, e, num in ((ap, ab, d20), (ap, ac, d21), (bp, bc, dot(bp, bc))):
         ee = dot(e, e)
         t = np.clip(num / np.maximum(ee, 1e-300), 0.0, 1.0)
         q = start - t[:, None] * e
-        d = dot(q, q)
-        edge = d if edge is None else np.minimum(edge, d)
+        to_sides.append(dot(q, q))
+    edge = np.minimum(np.minimum(to_sides[0], to_sides[1]), to_sides[2])
     q = ap - np.where(inside, v, 0.0)[:, None] * ab - np.where(inside, w, 0.0)[:, None] * ac
     return np.sqrt(np.where(inside, np.minimum(dot(q, q), edge), edge))
 
@@ -587,7 +587,9 @@ def plot_deviation(mesh_vertices, mesh_faces, signed, path, *, limit: float | No
         shade = 0.55 + 0.45 * np.abs(nrm @ towards)
         rgba = cmap(norm(face_val))
         rgba[:, :3] *= shade[:, None]
-        ax.add_collection(PolyCollection(tri2d, facecolors=rgba, edgecolors="none", antialiaseds=False))
+        # (a (m, 3, 2) array is the sequence of polygons matplotlib takes; its stubs name only Sequence)
+        polygons = PolyCollection(tri2d, facecolors=rgba, edgecolors="none", antialiaseds=False)  # type: ignore[arg-type]
+        ax.add_collection(polygons)
     else:
         # z-buffer splat of the vertices: nearest point per pixel wins.
         res = 900

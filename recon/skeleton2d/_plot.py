@@ -96,9 +96,9 @@ def plot_decomposition(result: SkeletonResult, *, ax=None, path: str | os.PathLi
         is_bridge[np.asarray(sg.bridges, dtype=np.int64)] = True
     segs = np.asarray(sk.vertices, dtype=np.float64)[edges] if len(edges) else np.zeros((0, 2, 2))
     if (~is_bridge).any():
-        ax.add_collection(LineCollection(segs[~is_bridge], colors="black", linewidths=1.0, zorder=5))
+        ax.add_collection(LineCollection(list(segs[~is_bridge]), colors="black", linewidths=1.0, zorder=5))
     if is_bridge.any():
-        ax.add_collection(LineCollection(segs[is_bridge], colors="black", linewidths=1.4, linestyles="--", zorder=5))
+        ax.add_collection(LineCollection(list(segs[is_bridge]), colors="black", linewidths=1.4, linestyles="--", zorder=5))
 
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     pad = 0.03 * float(np.max(hi - lo))

@@ -280,8 +280,9 @@ def _raster_mask(path: Path) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as im:
-            im.load()
+        with Image.open(path) as opened:
+            opened.load()
+            im: Image.Image = opened
             if im.mode == "P":
                 im = im.convert("RGBA" if "transparency" in im.info else "RGB")
             elif im.mode in ("LA", "PA"):
@@ -344,7 +345,7 @@ def _svg_curves(path: Path) -> list:
     step = max(diag, 1e-12) * _SVG_STEP
     out = []
     for segs in curves:
-        pts = []
+        pts: list[np.ndarray | list[list[float]]] = []
         for s in segs:
             if s.start is None or s.end is None:
                 continue
