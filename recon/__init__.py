@@ -23,7 +23,9 @@ _SOURCES = {
     **dict.fromkeys(["CurveFit", "SurfaceFit", "fit_curve", "fit_surface", "noise_sigma"], ".fit"),
     **dict.fromkeys(["CleanReport", "Mesh", "clean_mesh", "input_labels", "load_mesh"], ".mesh"),
     **dict.fromkeys(["Conversion", "convert"], ".pipeline"),
+    **dict.fromkeys(["build_solid", "write_shape"], ".brep"),
     **dict.fromkeys(["BatchRow", "convert_many"], ".batch"),
+    **dict.fromkeys(["to_cadquery"], ".interop"),
     **dict.fromkeys(["Part2D", "SegmentGraph", "Shape2D", "Skeleton2D", "SkeletonResult", "default_omega_min",
                      "default_spacing", "load_shape", "plot_decomposition", "shape_from_curves", "resample_curves",
                      "shape_from_mask", "skeletonize"], ".skeleton2d"),
@@ -74,6 +76,7 @@ __version__ = "0.1.0"
 __all__ = [
     "BatchRow",
     "BrepError",
+    "build_solid",
     "CleanReport",
     "Conversion",
     "convert",
@@ -113,4 +116,6 @@ __all__ = [
     "resample_curves",
     "shape_from_mask",
     "skeletonize",
+    "to_cadquery",
+    "write_shape",
 ]
