@@ -16,12 +16,14 @@ noise σ along the normals even the true model lies 1.96 σ from 5 % of the mesh
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import logging
 import os
 import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import InputError
 
@@ -58,7 +60,7 @@ class DeviationStats:
     signed_max: float | None = None  # most positive signed distance (outside), mesh → shape only
 
     @classmethod
-    def of(cls, values, diagonal: float, *, signed: bool) -> DeviationStats:
+    def of(cls, values: npt.ArrayLike, diagonal: float, *, signed: bool) -> DeviationStats:
         """Statistics of the finite ``values`` ((n,) float); ``signed`` adds the signed extremes; NaN if none."""
         v = np.asarray(values, dtype=float).ravel()
         v = v[np.isfinite(v)]
@@ -363,8 +365,9 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
             best[i] = sub
 
 
-def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | None = None, rng=None,
-              names=None) -> DeviationReport:
+def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,
+              samples: int | None = None, rng: np.random.Generator | None = None,
+              names: Sequence[str] | None = None) -> DeviationReport:
     """Distances from a mesh to a B-rep and back, overall and per face.
 
     Parameters
@@ -532,7 +535,8 @@ def _occ_shape(shape):
     return getattr(shape, "wrapped", shape)
 
 
-def plot_deviation(mesh_vertices, mesh_faces, signed, path, *, limit: float | None = None,
+def plot_deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, signed: npt.ArrayLike,
+                   path: str | os.PathLike, *, limit: float | None = None,
                    title: str | None = None) -> None:
     """Write a PNG of the mesh coloured by signed distance, with a colour bar in model units.
 

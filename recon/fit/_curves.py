@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import splprep
 from scipy.optimize import least_squares
 
@@ -186,7 +187,7 @@ def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree:
     return fit
 
 
-def fit_curve(points, *, tolerance: float, closed: bool = False) -> CurveFit:
+def fit_curve(points: npt.ArrayLike, *, tolerance: float, closed: bool = False) -> CurveFit:
     """The simplest curve within tolerance: line (open curves only) < circle < B-spline.
 
     Parameters
