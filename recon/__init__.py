@@ -39,6 +39,8 @@ def _register_lazily(name: str) -> None:
     a submodule as an attribute of its package when the import system first loads it, so whichever module imported
     ``recon.decompose`` first would have replaced the function. Registered here, they are never loaded through that
     path: ``recon.<name>`` stays the function, ``import recon.<name>`` and ``from recon.<name> import x`` work as ever.
+    (Where LazyLoader is not thread-safe, as in CPython 3.11 (CPython issue 114763), two threads whose first use of one
+    of these modules coincides may see it half-run; recon's own parallelism is processes, each importing in one thread.)
     """
     spec = importlib.util.find_spec(f"{__name__}.{name}")
     assert spec is not None and spec.loader is not None, name  # (our own files)
