@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import ast
 import inspect
+import os
 import re
+import subprocess
 import sys
 import tomllib
 from importlib.metadata import packages_distributions
@@ -99,3 +101,15 @@ def test_what_is_declared_for_trimesh_is_what_it_imports(name):
     trimesh_dir = Path(__import__("trimesh").__file__).parent
     assert any(re.search(rf"^\s*(import|from) {name}\b", p.read_text(encoding="utf-8", errors="replace"), re.M)
                for p in trimesh_dir.rglob("*.py")), name
+
+
+@pytest.mark.parametrize("first", ["recon.pipeline", "recon.decompose._core", "recon.deviation", "recon._cli.compare"])
+def test_decompose_and_deviation_stay_the_functions_whatever_is_imported_first(first):
+    # In a fresh process: pipeline imports the subpackage recon.decompose before anyone asks for recon.decompose.
+    code = (f"import importlib, inspect, recon; importlib.import_module({first!r}); import recon.decompose, recon.deviation; "
+            "assert inspect.isfunction(recon.decompose) and recon.decompose.__module__ == 'recon.decompose._core'; "
+            "assert inspect.isfunction(recon.deviation) and recon.deviation.__module__ == 'recon.deviation'; "
+            "from recon.deviation import DeviationReport; from recon.decompose import Decomposition")
+    env = dict(os.environ, PYTHONPATH=str(ROOT.parent))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert proc.returncode == 0, proc.stderr[-2000:]
