@@ -25,7 +25,7 @@ _SOURCES = {
     **dict.fromkeys(["Conversion", "convert"], ".pipeline"),
     **dict.fromkeys(["build_solid", "write_shape"], ".brep"),
     **dict.fromkeys(["BatchRow", "convert_many"], ".batch"),
-    **dict.fromkeys(["to_cadquery"], ".interop"),
+    **dict.fromkeys(["to_cadquery"], ".brep._cadquery"),
     **dict.fromkeys(["Part2D", "SegmentGraph", "Shape2D", "Skeleton2D", "SkeletonResult", "default_omega_min",
                      "default_spacing", "load_shape", "plot_decomposition", "shape_from_curves", "resample_curves",
                      "shape_from_mask", "skeletonize"], ".skeleton2d"),

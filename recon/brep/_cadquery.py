@@ -1,7 +1,7 @@
-"""recon's results in other CAD libraries.
+"""recon's B-rep in CadQuery (the ``cadquery`` extra: ``pip install "recon[cadquery]"``).
 
-CadQuery (the ``cadquery`` extra: ``pip install "recon[cadquery]"``) runs on the same OpenCascade build as
-build123d (OCP 7.9.3), so a result passes by reference, no file in between:
+CadQuery runs on the same OpenCascade build as build123d (OCP 7.9.3), so a result passes by reference, no file in
+between:
 
 >>> import recon                                                     # doctest: +SKIP
 >>> solid = recon.to_cadquery(recon.convert("part.stl"))             # doctest: +SKIP
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import cadquery
 
-    from .pipeline import Conversion
+    from ..pipeline import Conversion
 
 __all__ = ["to_cadquery"]
 
