@@ -45,7 +45,7 @@ class Conversion:
     Attributes
     ----------
     shape : build123d Solid, Shell or Compound
-        The B-rep: keep modelling on it in build123d, or ``cadquery.Shape.cast(shape.wrapped)``. Made on
+        The B-rep: keep modelling on it in build123d, or in CadQuery with :func:`recon.to_cadquery`. Made on
         first use (``brep.shape``): the command line writes the STEP without importing build123d.
     report : dict
         Strict-JSON figures: faces by type, deviation, validity, time per stage, per-face records, and the
