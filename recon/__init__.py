@@ -5,9 +5,12 @@ Names load on first use (PEP 562, as scikit-image's lazy_loader): ``import recon
 command can set up its signal handlers and thread limits before numpy, scipy or OpenCascade load.
 """
 
+from __future__ import annotations
+
 import importlib
+import importlib.util
 import sys
-import types
+from typing import Any
 
 #: Public name -> the submodule that defines it.
 _SOURCES = {
@@ -20,27 +23,40 @@ _SOURCES = {
     **dict.fromkeys(["CurveFit", "SurfaceFit", "fit_curve", "fit_surface", "noise_sigma"], ".fit"),
     **dict.fromkeys(["CleanReport", "Mesh", "clean_mesh", "input_labels", "load_mesh"], ".mesh"),
     **dict.fromkeys(["Conversion", "convert"], ".pipeline"),
+    **dict.fromkeys(["build_solid", "write_shape"], ".brep"),
     **dict.fromkeys(["BatchRow", "convert_many"], ".batch"),
+    **dict.fromkeys(["to_cadquery"], ".brep._cadquery"),
     **dict.fromkeys(["Part2D", "SegmentGraph", "Shape2D", "Skeleton2D", "SkeletonResult", "default_omega_min",
                      "default_spacing", "load_shape", "plot_decomposition", "shape_from_curves", "resample_curves",
                      "shape_from_mask", "skeletonize"], ".skeleton2d"),
 }
 
 
-class _Package(types.ModuleType):
-    """``recon.deviation`` and ``recon.decompose`` name a function and the submodule that defines it. Importing a
-    submodule sets it as the package's attribute; the function is what the package has always offered there."""
+def _register_lazily(name: str) -> None:
+    """Put the submodule ``recon.<name>`` in ``sys.modules`` now, its code to run on first use (stdlib LazyLoader).
 
-    def __setattr__(self, name, value):
-        if isinstance(value, types.ModuleType) and _SOURCES.get(name) == f".{name}" and hasattr(value, name):
-            value = getattr(value, name)
-        super().__setattr__(name, value)
+    ``recon.decompose`` and ``recon.deviation`` name a public function and the submodule that defines it. Python binds
+    a submodule as an attribute of its package when the import system first loads it, so whichever module imported
+    ``recon.decompose`` first would have replaced the function. Registered here, they are never loaded through that
+    path: ``recon.<name>`` stays the function, ``import recon.<name>`` and ``from recon.<name> import x`` work as ever.
+    (Where LazyLoader is not thread-safe, as in CPython 3.11 (CPython issue 114763), two threads whose first use of one
+    of these modules coincides may see it half-run; recon's own parallelism is processes, each importing in one thread.)
+    """
+    spec = importlib.util.find_spec(f"{__name__}.{name}")
+    assert spec is not None and spec.loader is not None, name  # (our own files)
+    spec.loader = importlib.util.LazyLoader(spec.loader)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
 
 
-sys.modules[__name__].__class__ = _Package
+for _name in [name for name, source in _SOURCES.items() if source == f".{name}"]:  # decompose, deviation
+    if f"{__name__}.{_name}" not in sys.modules:
+        _register_lazily(_name)
+del _name
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     if name in _SOURCES:
         value = getattr(importlib.import_module(_SOURCES[name], __name__), name)
         globals()[name] = value  # once loaded, a plain attribute
@@ -53,7 +69,7 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def __dir__():
+def __dir__() -> list[str]:
     return sorted(set(globals()) | set(__all__))
 
 
@@ -62,6 +78,7 @@ __version__ = "0.1.0"
 __all__ = [
     "BatchRow",
     "BrepError",
+    "build_solid",
     "CleanReport",
     "Conversion",
     "convert",
@@ -101,4 +118,6 @@ __all__ = [
     "resample_curves",
     "shape_from_mask",
     "skeletonize",
+    "to_cadquery",
+    "write_shape",
 ]

@@ -16,12 +16,14 @@ noise σ along the normals even the true model lies 1.96 σ from 5 % of the mesh
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import logging
 import os
 import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 
 from .errors import InputError
 
@@ -58,7 +60,7 @@ class DeviationStats:
     signed_max: float | None = None  # most positive signed distance (outside), mesh → shape only
 
     @classmethod
-    def of(cls, values, diagonal: float, *, signed: bool) -> DeviationStats:
+    def of(cls, values: npt.ArrayLike, diagonal: float, *, signed: bool) -> DeviationStats:
         """Statistics of the finite ``values`` ((n,) float); ``signed`` adds the signed extremes; NaN if none."""
         v = np.asarray(values, dtype=float).ravel()
         v = v[np.isfinite(v)]
@@ -223,13 +225,13 @@ def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
         v = (d11 * d20 - d01 * d21) / den
         w = (d00 * d21 - d01 * d20) / den
     inside = (v >= 0) & (w >= 0) & (v + w <= 1)
-    edge = None
+    to_sides = []
     for start, e, num in ((ap, ab, d20), (ap, ac, d21), (bp, bc, dot(bp, bc))):
         ee = dot(e, e)
         t = np.clip(num / np.maximum(ee, 1e-300), 0.0, 1.0)
         q = start - t[:, None] * e
-        d = dot(q, q)
-        edge = d if edge is None else np.minimum(edge, d)
+        to_sides.append(dot(q, q))
+    edge = np.minimum(np.minimum(to_sides[0], to_sides[1]), to_sides[2])
     q = ap - np.where(inside, v, 0.0)[:, None] * ab - np.where(inside, w, 0.0)[:, None] * ac
     return np.sqrt(np.where(inside, np.minimum(dot(q, q), edge), edge))
 
@@ -363,8 +365,9 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
             best[i] = sub
 
 
-def deviation(mesh_vertices, mesh_faces, shape_or_step_path, *, samples: int | None = None, rng=None,
-              names=None) -> DeviationReport:
+def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,
+              samples: int | None = None, rng: np.random.Generator | None = None,
+              names: Sequence[str] | None = None) -> DeviationReport:
     """Distances from a mesh to a B-rep and back, overall and per face.
 
     Parameters
@@ -531,7 +534,8 @@ def _occ_shape(shape):
     return getattr(shape, "wrapped", shape)
 
 
-def plot_deviation(mesh_vertices, mesh_faces, signed, path, *, limit: float | None = None,
+def plot_deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, signed: npt.ArrayLike,
+                   path: str | os.PathLike, *, limit: float | None = None,
                    title: str | None = None) -> None:
     """Write a PNG of the mesh coloured by signed distance, with a colour bar in model units.
 
@@ -586,7 +590,9 @@ def plot_deviation(mesh_vertices, mesh_faces, signed, path, *, limit: float | No
         shade = 0.55 + 0.45 * np.abs(nrm @ towards)
         rgba = cmap(norm(face_val))
         rgba[:, :3] *= shade[:, None]
-        ax.add_collection(PolyCollection(tri2d, facecolors=rgba, edgecolors="none", antialiaseds=False))
+        # (a (m, 3, 2) array is the sequence of polygons matplotlib takes; its stubs name only Sequence)
+        polygons = PolyCollection(tri2d, facecolors=rgba, edgecolors="none", antialiaseds=False)  # type: ignore[arg-type]
+        ax.add_collection(polygons)
     else:
         # z-buffer splat of the vertices: nearest point per pixel wins.
         res = 900

@@ -11,9 +11,10 @@ import os
 import time
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
+import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from .decompose import Decomposition, decompose
@@ -21,6 +22,11 @@ from .errors import BrepError, InputError, ReconError
 from ._tolerance import tolerance_for
 from .mesh import Mesh, clean_mesh, load_mesh
 from .segment import segment
+
+if TYPE_CHECKING:  # (build123d loads on first use of a result's shape; see Conversion.shape)
+    import build123d as bd
+
+    from .verdict import Verdict
 
 __all__ = ["Conversion", "convert", "STAGES"]
 
@@ -39,7 +45,7 @@ class Conversion:
     Attributes
     ----------
     shape : build123d Solid, Shell or Compound
-        The B-rep: keep modelling on it in build123d, or ``cadquery.Shape.cast(shape.wrapped)``. Made on
+        The B-rep: keep modelling on it in build123d, or in CadQuery with :func:`recon.to_cadquery`. Made on
         first use (``brep.shape``): the command line writes the STEP without importing build123d.
     report : dict
         Strict-JSON figures: faces by type, deviation, validity, time per stage, per-face records, and the
@@ -61,11 +67,11 @@ class Conversion:
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     @property
-    def shape(self):
+    def shape(self) -> bd.Shape:
         return self.brep.shape
 
     @property
-    def verdict(self):
+    def verdict(self) -> Verdict:
         """The acceptance rules on this result (:class:`recon.verdict.Verdict`, from ``report["verdict"]``): judged
         on the shape in memory, and on the written file once :func:`recon.verdict.write_checked` wrote it."""
         from .verdict import Verdict
@@ -74,7 +80,7 @@ class Conversion:
 
 
 def convert(
-    mesh: Mesh | str | os.PathLike,
+    mesh: Mesh | str | os.PathLike | tuple[npt.ArrayLike, npt.ArrayLike],
     *,
     tolerance: float | None = None,
     scale: float | None = None,
@@ -87,7 +93,8 @@ def convert(
     Parameters
     ----------
     mesh : Mesh or path
-        A cleaned :class:`recon.mesh.Mesh`, or a mesh file (STL, OBJ, PLY, OFF, 3MF, GLB).
+        A cleaned :class:`recon.mesh.Mesh`, a mesh file (STL, OBJ, PLY, OFF, 3MF, GLB), or ``(vertices, faces)``
+        arrays (cleaned here).
     tolerance : float, optional
         Model units. A surface type is accepted for a part when its points lie within it (99th percentile,
         max within twice it); edges are kept as lines/circles within it. Default: max(4σ, 10⁻⁴ · diagonal)

@@ -174,10 +174,10 @@ def _axis_labels(mesh):
     return (axis * 2 + (n[np.arange(len(n)), axis] > 0)).astype(np.int64)
 
 
-@pytest.fixture(scope="module")
-def sharp_box():
-    m = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
-    return np.asarray(m.vertices), np.asarray(m.faces), _axis_labels(m)
+@pytest.fixture
+def sharp_box(box_mesh):
+    """conftest's box as (vertices, faces, true face of each triangle)."""
+    return np.asarray(box_mesh.vertices), np.asarray(box_mesh.faces), _axis_labels(box_mesh)
 
 
 def test_box_with_bspline_fitted_sides_is_the_box(sharp_box):

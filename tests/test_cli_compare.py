@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import json
 
+import build123d as bd
 import numpy as np
 import pytest
 import trimesh
 
-bd = pytest.importorskip("build123d")
-
-from recon.cli import main  # noqa: E402
+from recon.cli import main
 
 
 @pytest.fixture()

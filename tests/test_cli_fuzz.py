@@ -12,11 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-hypothesis = pytest.importorskip("hypothesis")  # a declared test dependency (pyproject [test])
-from hypothesis import HealthCheck, event, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
 
-from cli_harness import FIXTURES, binary_stl, read_stl, run_in_process, step_is_valid_solid  # noqa: E402
+from cli_harness import FIXTURES, binary_stl, read_stl, run_in_process, step_is_valid_solid
 
 BASE = "prism_coarse.stl"  # 276 triangles: a conversion takes about a second here
 

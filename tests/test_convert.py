@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from recon._freecad import freecadcmd, inspect_step
+from recon._freecad import inspect_step
 
 
 def _recon(*args, cwd):
@@ -18,18 +18,17 @@ def _recon(*args, cwd):
 
 
 @pytest.fixture(scope="module")
-def sharp_box(tmp_path_factory):
-    """A 30 × 20 × 10 box meshed with ~1 mm triangles: 6 true faces, all planes, volume 6000."""
+def converted_box(tmp_path_factory, box_mesh):
+    """conftest's box (6 planes, volume 6000) through ``recon convert``: the folder of its outputs and the process."""
     d = tmp_path_factory.mktemp("box")
-    mesh = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
     path = d / "box.stl"
-    mesh.export(path)
+    box_mesh.export(path)
     proc = _recon("convert", path, d / "box.step", "--report", d / "box.json", "--preview", d / "box.png", cwd=d)
     return d, proc
 
 
-def test_sharp_box_gives_six_planes_and_the_exact_volume(sharp_box):
-    d, proc = sharp_box
+def test_sharp_box_gives_six_planes_and_the_exact_volume(converted_box):
+    d, proc = converted_box
     assert proc.returncode == 0, proc.stderr[-2000:]
     report = json.loads((d / "box.json").read_text())
     assert report["n_faces"] == 6
@@ -44,10 +43,10 @@ def test_sharp_box_gives_six_planes_and_the_exact_volume(sharp_box):
     assert "faces: 6 (6 plane)" in proc.stderr
 
 
-def test_the_deviation_both_ways_per_named_face(sharp_box):
+def test_the_deviation_both_ways_per_named_face(converted_box):
     """The report's per-face deviations carry the faces' own names, and the summary shows both directions: a face
     that reaches far from the mesh shows only from the shape's side (every mesh point lies near some face)."""
-    d, proc = sharp_box
+    d, proc = converted_box
     report = json.loads((d / "box.json").read_text())
     dev = report["deviation"]
     assert sorted(f["name"] for f in dev["faces"]) == sorted(f["name"] for f in report["faces"])
@@ -72,8 +71,8 @@ def test_summary_names_the_face_farthest_from_the_mesh():
     assert len(back) == 1 and back[0].startswith("deviation shape→mesh: max 80 ") and back[0].endswith("farthest: patch_1")
 
 
-def test_step_round_trip_and_face_names(sharp_box):
-    d, _ = sharp_box
+def test_step_round_trip_and_face_names(converted_box):
+    d, _ = converted_box
     from build123d import import_step
 
     from recon.brep import read_step_faces
@@ -84,21 +83,20 @@ def test_step_round_trip_and_face_names(sharp_box):
     assert sorted(names) == sorted(f"patch_{i}" for i in range(6))
 
 
-@pytest.mark.skipif(freecadcmd() is None, reason="FreeCAD (freecadcmd) not installed")
-def test_freecad_opens_one_valid_solid(sharp_box):
-    d, _ = sharp_box
+@pytest.mark.freecad
+def test_freecad_opens_one_valid_solid(converted_box):
+    d, _ = converted_box
     (obj,) = inspect_step(d / "box.step")["objects"]
     assert obj["type"] == "Solid" and obj["valid"] and obj["closed"]
     assert obj["faces"] == 6 and obj["volume"] == pytest.approx(6000.0, rel=1e-9)
 
 
-def test_python_api_returns_a_build123d_solid_to_keep_modelling():
+def test_python_api_returns_a_build123d_solid_to_keep_modelling(box_mesh):
     import build123d as bd
 
     from recon import convert
 
-    mesh = trimesh.creation.box(extents=(30, 20, 10)).subdivide_to_size(1.0)
-    result = convert((mesh.vertices, mesh.faces), deviation=False)
+    result = convert((box_mesh.vertices, box_mesh.faces), deviation=False)
     assert isinstance(result.shape, bd.Solid)
     # Drill a through hole in the reconstruction: the volume drops by exactly the cylinder's.
     drilled = result.shape - bd.Cylinder(3, 40)
@@ -108,7 +106,6 @@ def test_python_api_returns_a_build123d_solid_to_keep_modelling():
 
 # -- ground truth under noise, and real meshes ------------------------------------------------------------------
 
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 @pytest.mark.parametrize("part", ["box_chamfer", "box_fillet", "plate_holes", "pocket", "prism", "lofted", "revolved"])
@@ -205,15 +202,14 @@ def test_revolved_part_under_noise_has_its_six_true_faces():
     assert big.params["radius"] == pytest.approx(20.0, abs=0.1)
 
 
-@pytest.mark.skipif(not MESHES.is_dir(), reason="../shared/meshes is absent")
 @pytest.mark.parametrize(
     "name", ["block.off", "joint.off", "abc_00000050.stl", "fandisk-b_noisy0.1.off", "casting.off"])
-def test_real_mesh_converts_to_valid_solids(name):
+def test_real_mesh_converts_to_valid_solids(shared_meshes, name):
     """Meshes nobody here made: block (one body), joint (genus 2), the ABC model (three bodies → three solids),
     fandisk-b with synthetic noise on the same connectivity, casting (69 faces)."""
     from recon import convert
 
-    result = convert(MESHES / name, deviation=False)
+    result = convert(shared_meshes / name, deviation=False)
     val = result.brep.validity
     assert val.ok, result.report["validity"]
     assert val.n_solids == (3 if name.startswith("abc") else 1)

@@ -15,10 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytest.importorskip("build123d")
-
-from bench.corpus import regimes  # noqa: E402
-from bench.corpus.parts import part  # noqa: E402
+from bench.corpus import regimes
+from bench.corpus.parts import part
 
 ROOT = Path(__file__).resolve().parents[1]
 #: quick seeds covering the families: swept, sphere, prismatic (shell, holes, variable fillet), lofted, a pyramid with

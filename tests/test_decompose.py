@@ -4,11 +4,13 @@ import json
 
 import numpy as np
 import pytest
+import trimesh
 
 from recon.cli import main
 from recon.decompose import decompose, face_recovery
 from recon.decompose._regions import TOL_FLOOR
 from bench.synthetic import rounded_box
+from recon.fixtures import load_fixture
 
 
 def _areas(V, F):
@@ -65,14 +67,11 @@ def test_sharp_box_is_six_planes():
         assert np.abs(n[d.labels == p] - n[d.labels == p][0]).max() < 1e-9
 
 
-# -- ground-truth fixtures (recon.fixtures), skipped when the data are absent --------------------------------
+# -- ground-truth fixtures (recon.fixtures; fixtures/data is in the repository) -------------------------------
 
 
 def _fixture(part, variant):
-    fixtures = pytest.importorskip("recon.fixtures")
-    if (part, variant) not in fixtures.list_fixtures():
-        pytest.skip(f"fixture {part}/{variant} absent")
-    return fixtures.load_fixture(part, variant)
+    return load_fixture(part, variant)
 
 
 def test_fixture_box_fillet_counts():
@@ -142,7 +141,6 @@ def test_retessellation_same_counts():
 
 
 def test_cli(tmp_path):
-    trimesh = pytest.importorskip("trimesh")
     V, F, L = rounded_box(radius=3.0, spacing=1.0)
     src = tmp_path / "box.stl"
     trimesh.Trimesh(V, F, process=False).export(src)

@@ -2,27 +2,26 @@
 
 from __future__ import annotations
 
+import build123d as bd
 import numpy as np
 import pytest
 import trimesh
 
-bd = pytest.importorskip("build123d")
+from OCP.BRepAdaptor import BRepAdaptor_Surface
+from OCP.gp import gp_Pnt, gp_Vec
+from OCP.Interface import Interface_Static
+from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Writer
+from OCP.STEPControl import STEPControl_AsIs
+from OCP.TCollection import TCollection_ExtendedString
+from OCP.TDataStd import TDataStd_Name
+from OCP.TDocStd import TDocStd_Document
+from OCP.TopAbs import TopAbs_REVERSED
+from OCP.XCAFDoc import XCAFDoc_DocumentTool
 
-from OCP.BRepAdaptor import BRepAdaptor_Surface  # noqa: E402
-from OCP.gp import gp_Pnt, gp_Vec  # noqa: E402
-from OCP.Interface import Interface_Static  # noqa: E402
-from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Writer  # noqa: E402
-from OCP.STEPControl import STEPControl_AsIs  # noqa: E402
-from OCP.TCollection import TCollection_ExtendedString  # noqa: E402
-from OCP.TDataStd import TDataStd_Name  # noqa: E402
-from OCP.TDocStd import TDocStd_Document  # noqa: E402
-from OCP.TopAbs import TopAbs_REVERSED  # noqa: E402
-from OCP.XCAFDoc import XCAFDoc_DocumentTool  # noqa: E402
-
-from recon.brep._distance import BrepDistance  # noqa: E402
-from recon.brep._step_read import faces_of, read_step  # noqa: E402
-from recon.deviation import deviation, plot_deviation  # noqa: E402
-from recon.errors import InputError  # noqa: E402
+from recon.brep._distance import BrepDistance
+from recon.brep._step_read import faces_of, read_step
+from recon.deviation import deviation, plot_deviation
+from recon.errors import InputError
 
 
 def write_named_step(shape, names, path):

@@ -1,15 +1,11 @@
 """Mesh loading and cleaning: formats, welding, dropping, orientation, components, bad input, real meshes."""
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import trimesh
 
 from recon import InputError, MeshError, clean_mesh, input_labels, load_mesh
 from recon.mesh import read_triangles
-
-MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
 
 
 def _cube():
@@ -336,10 +332,8 @@ REAL = [  # file, input triangles, kept vertices, components, genus per Euler (N
 
 
 @pytest.mark.parametrize("name,n_faces,n_vertices,components,genus,input_nm", REAL, ids=[r[0] for r in REAL])
-def test_real_meshes_load(name, n_faces, n_vertices, components, genus, input_nm):
-    path = MESHES / name
-    if not path.exists():
-        pytest.skip(f"{path} not present")
+def test_real_meshes_load(shared_meshes, name, n_faces, n_vertices, components, genus, input_nm):
+    path = shared_meshes / name
     mesh = load_mesh(path)
     r = mesh.report
     if n_faces is not None:

@@ -98,9 +98,9 @@ def find_parts(specs: list[str], *, exclude: str | None = None) -> list[Part]:
     exts = ", ".join(e[1:] for e in SUPPORTED_FORMATS)
     for spec in specs:
         fs, path = fs_of(str(spec))
+        listing: dict[str, dict] = {}
         if any(c in path for c in "*?["):
             hits = fs.glob(path, detail=True)
-            listing = {}
             for p, info in hits.items():
                 listing.update(fs.find(p, detail=True) if info.get("type") == "directory" else {p: info})
         elif fs.isdir(path):
@@ -113,7 +113,7 @@ def find_parts(specs: list[str], *, exclude: str | None = None) -> list[Part]:
             raise InputError(f"{spec}: no such file or folder")
         searched = len(listing) != 1 or not fs.isfile(path)  # a file named outright is taken as it is
         meshes = {p: info for p, info in listing.items() if _is_mesh(p) and not (
-            searched and ex_fs is not None and type(ex_fs) is type(fs) and _inside(p, ex_path))}
+            searched and ex_path is not None and type(ex_fs) is type(fs) and _inside(p, ex_path))}
         if not meshes:
             raise InputError(f"{spec}: no mesh files ({exts}) found")
         for p, info in meshes.items():

@@ -7,11 +7,15 @@ import math
 import os
 import posixpath
 from dataclasses import dataclass
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 from ..errors import InputError
 from ._inputs import OUTPUT_FORMATS, Part, find_parts, finished_reports, fs_of, is_local, name_parts, run_key
 from ._summary import BatchRow, SummaryWriter, write_html
+
+if TYPE_CHECKING:  # (both load on use: the batch extra, and pandas where installed)
+    import distributed
+    import pandas
 
 __all__ = ["convert_many", "BatchProgress"]
 
@@ -104,7 +108,7 @@ def convert_many(
     inputs: list[str | os.PathLike] | str | os.PathLike,
     out: str | os.PathLike,
     *,
-    client=None,
+    client: distributed.Client | None = None,
     scheduler: str | None = None,
     workers: int | None = None,
     tolerance: float | None = None,
@@ -114,7 +118,7 @@ def convert_many(
     preview: bool = True,
     memory_limit: int | None = None,
     progress: Callable[[BatchProgress], None] | None = None,
-):
+) -> pandas.DataFrame | list[BatchRow]:
     """Convert many meshes on a Dask cluster; each one as ``recon.convert`` would, in its own process.
 
     Parameters

@@ -25,7 +25,7 @@ from pathlib import Path
 ABORT_ENV = "RECON_TEST_ABORT"
 
 
-def _one_line(text: str, limit: int = 300) -> str:
+def _one_line(text: object, limit: int = 300) -> str:
     text = " ".join(str(text).split())
     return text if len(text) <= limit else text[: limit - 1] + "…"
 

@@ -69,7 +69,8 @@ class SummaryWriter:
     def __init__(self, out: str, *, every: float = 10.0):
         self.fs, root = fs_of(out)
         self.path = posixpath.join(root, "summary.csv")
-        self.every, self.last, self.rows = every, 0.0, []
+        self.every, self.last = every, 0.0
+        self.rows: list[BatchRow] = []
         self.fh = open(self.path, "w", newline="") if is_local(self.fs) else None
         self._write(_csv_line(COLUMNS))
 

@@ -53,6 +53,8 @@ class _Runner:
         env.setdefault("OMP_NUM_THREADS", "1")  # one core per worker: BLAS threads would compete with the others
         self.proc = subprocess.Popen([sys.executable, "-m", "recon.batch._runner"], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=self.log, env=env)
+        assert self.proc.stdin is not None and self.proc.stdout is not None  # (PIPE both)
+        self.stdin, self.stdout = self.proc.stdin, self.proc.stdout
         self.buf = b""
         ready = self.read(START_TIMEOUT, memory_limit=None)
         if "ready" not in ready:
@@ -62,7 +64,7 @@ class _Runner:
         """The next line from the runner, or ``{"error": ...}`` when it dies, overruns ``timeout`` seconds or
         ``memory_limit`` bytes (then it is killed)."""
         t0 = time.monotonic()
-        fd = self.proc.stdout.fileno()
+        fd = self.stdout.fileno()
         with selectors.DefaultSelector() as sel:
             sel.register(fd, selectors.EVENT_READ)
             while b"\n" not in self.buf:
@@ -113,8 +115,8 @@ class _Runner:
         # The log holds this part's output only (the runner shares the file's offset): its last line is about it.
         self.log.seek(0)
         self.log.truncate()
-        self.proc.stdin.write((json.dumps(job) + "\n").encode())
-        self.proc.stdin.flush()
+        self.stdin.write((json.dumps(job) + "\n").encode())
+        self.stdin.flush()
         return self.read(timeout, memory_limit=memory_limit)
 
     def alive(self) -> bool:

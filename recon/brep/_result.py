@@ -16,6 +16,7 @@ from OCP.GProp import GProp_GProps
 from OCP.ShapeAnalysis import ShapeAnalysis_FreeBounds
 from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_SHELL, TopAbs_SOLID
 from OCP.TopExp import TopExp_Explorer
+from OCP.TopoDS import TopoDS_Shape
 
 from ..network import NetworkGeometry
 
@@ -113,7 +114,7 @@ class BrepResult:
     warnings : tuple of str
     """
 
-    occ: object
+    occ: TopoDS_Shape
     faces: tuple
     validity: Validity
     geometry: NetworkGeometry

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import InputError
 
@@ -42,7 +43,7 @@ class FaceRecovery:
         return float(self.iou.mean()) if len(self.iou) else 0.0
 
 
-def face_recovery(labels, true_labels, areas, *, threshold: float = 0.5) -> FaceRecovery:
+def face_recovery(labels: npt.ArrayLike, true_labels: npt.ArrayLike, areas: npt.ArrayLike, *, threshold: float = 0.5) -> FaceRecovery:
     """For each true face, the part overlapping it most and their area IoU.
 
     Parameters

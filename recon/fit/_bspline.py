@@ -52,8 +52,9 @@ def _plane_frame(points: np.ndarray):
     return mean, vec[:, 2], vec[:, 1], vec[:, 0]  # origin, u axis, v axis, normal
 
 
-def _harmonic_disk(n_points: int, faces: np.ndarray) -> np.ndarray | None:
-    """Tutte map of a disk-shaped triangle patch onto the unit disk; None if the patch is not a disk."""
+def _harmonic_disk(n_points: int, faces: np.ndarray) -> list[int] | None:
+    """The boundary loop (vertex ids in order) of a disk-shaped triangle patch, the rim its Tutte map pins to the unit
+    circle; None if the patch is not a disk."""
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     uniq, counts = np.unique(edges, axis=0, return_counts=True)
     used = np.unique(faces)
@@ -62,7 +63,7 @@ def _harmonic_disk(n_points: int, faces: np.ndarray) -> np.ndarray | None:
     boundary = uniq[counts == 1]
     if len(boundary) < 3:
         return None
-    nxt = {}
+    nxt: dict[int, list[int]] = {}
     for a, b in boundary:
         nxt.setdefault(int(a), []).append(int(b))
         nxt.setdefault(int(b), []).append(int(a))
@@ -193,14 +194,14 @@ def _parametrise(points, normals, faces):
         return np.column_stack([q @ eu, q @ ev]), "plane", None
     if faces is None:
         return None, "not a height field over its best plane, and no faces were given for a harmonic map", None
-    loop = _harmonic_disk(len(points), faces)
-    if loop is None:
+    rim = _harmonic_disk(len(points), faces)
+    if rim is None:
         uv, circumference = _cylindrical(points, faces)  # a list of two candidate parametrisations
         if uv is None:
             why = "not a height field, not a topological disk and not a band around an axis: fit it analytically"
             return None, why, None
         return uv, "cylindrical", circumference
-    loop = np.asarray(loop)
+    loop = np.asarray(rim)
     seg = np.linalg.norm(np.diff(points[np.r_[loop, loop[0]]], axis=0), axis=1)
     angle = 2 * np.pi * np.r_[0.0, np.cumsum(seg)[:-1]] / seg.sum()
     n = len(points)
@@ -355,7 +356,7 @@ def fit_bspline_surface(
     if uv is None:
         return SurfaceFit("bspline", {}, deviation_stats(np.empty(0)), len(pts), ok=False, reason=f"bspline: {how}")
     periodic = how == "cylindrical"
-    best = None
+    best: SurfaceFit | None = None
     for cand in uv if periodic else [uv]:
         fit = _fit_parametrised(pts, cand, periodic, u_length, tolerance=tolerance, degree=degree, intervals=intervals,
                                 smoothing=smoothing, corrections=corrections, max_intervals=max_intervals,
@@ -365,6 +366,7 @@ def fit_bspline_surface(
             best = fit
         if fit.ok:
             break  # the first parametrisation that fits is kept: the second costs a whole fit
+    assert best is not None  # one candidate at least: uv is not None here
     log.debug("bspline (%s parametrisation): deviation %s", how, best.deviation)
     if periodic and tolerance is not None and not best.ok and not best.deviation["rms"] <= BAND_RMS * tolerance:
         # not one smooth band (e.g. fillets meeting at sharp corners): a surface this far off would only bound a

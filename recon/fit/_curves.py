@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import splprep
 from scipy.optimize import least_squares
 
@@ -172,8 +173,7 @@ def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree:
     chord = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(data, axis=0), axis=1))]
     u = chord / chord[-1]
     s = 2 * len(data) * (tolerance / 4.0) ** 2
-    fit = None
-    for _ in range(7):
+    for _ in range(7):  # (at least once: ``fit`` is always bound)
         try:
             (t, c, k), _ = splprep(data.T, u=u, s=s, k=degree, per=int(closed), quiet=2)
         except (ValueError, TypeError) as err:  # FITPACK refuses too few / degenerate points
@@ -187,7 +187,7 @@ def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree:
     return fit
 
 
-def fit_curve(points, *, tolerance: float, closed: bool = False) -> CurveFit:
+def fit_curve(points: npt.ArrayLike, *, tolerance: float, closed: bool = False) -> CurveFit:
     """The simplest curve within tolerance: line (open curves only) < circle < B-spline.
 
     Parameters

@@ -22,7 +22,7 @@ from ..errors import FitError
 from ._bspline_surface import BSplineSurface
 
 __all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "SurfaceKind", "surface_from_params",
-           "Line", "Circle", "BSplineCurve", "curve_from_params"]
+           "Line", "Circle", "BSplineCurve", "curve_from_params", "Surface", "Curve"]
 
 
 class SurfaceKind(StrEnum):
@@ -201,7 +201,11 @@ class Torus:
         return ring + self.minor_radius * u, u
 
 
-def surface_from_params(kind: str, params: dict):
+#: every surface type a fit makes
+Surface = Plane | Sphere | Cylinder | Cone | Torus | BSplineSurface
+
+
+def surface_from_params(kind: str, params: dict) -> Surface:
     """Build the geometric surface of a :class:`~recon.fit.SurfaceFit` from its plain ``params``."""
     p = {k: (np.asarray(v, dtype=float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
     if kind == "plane":
@@ -303,7 +307,11 @@ class BSplineCurve:
         return np.linalg.norm(self._spline(self.closest_parameters(pts)) - pts, axis=1)
 
 
-def curve_from_params(kind: str, params: dict):
+#: every curve type a fit makes
+Curve = Line | Circle | BSplineCurve
+
+
+def curve_from_params(kind: str, params: dict) -> Curve:
     """Build the geometric curve of a :class:`~recon.fit.CurveFit` from its plain ``params``."""
     a = {k: (np.asarray(v, float) if isinstance(v, (list, tuple)) else v) for k, v in params.items()}
     if kind == "line":

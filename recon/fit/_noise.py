@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from .._tolerance import tolerance_for
@@ -44,7 +45,7 @@ def estimate_normals(points, *, k: int = 12) -> np.ndarray:
     return vec[:, :, 0]
 
 
-def noise_sigma(points, normals=None, *, k: int = 20) -> float:
+def noise_sigma(points: npt.ArrayLike, normals: npt.ArrayLike | None = None, *, k: int = 20) -> float:
     """Estimate the noise σ of points sampled from a smooth surface.
 
     Each point's ``k`` nearest neighbours are fitted, in their PCA frame (or the frame of the given normal),

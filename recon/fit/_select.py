@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import logging
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import FitError
 from ._bspline import fit_bspline_surface
@@ -45,15 +47,15 @@ BAND_EXACT = 0.01
 
 
 def fit_surface(
-    points,
-    normals=None,
+    points: npt.ArrayLike,
+    normals: npt.ArrayLike | None = None,
     *,
     tolerance: float | None = None,
-    types=("plane", "sphere", "cylinder", "cone", "torus"),
+    types: Sequence[str] = ("plane", "sphere", "cylinder", "cone", "torus"),
     allow_bspline: bool = True,
-    faces=None,
+    faces: npt.ArrayLike | None = None,
     sigma: float | None = None,
-    bspline_normals=None,
+    bspline_normals: npt.ArrayLike | None = None,
 ) -> SurfaceFit:
     """Fit the simplest surface type that matches the points within ``tolerance``.
 

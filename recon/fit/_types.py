@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from ._geometry import curve_from_params, surface_from_params
+from ._geometry import Curve, Surface, curve_from_params, surface_from_params
 
 __all__ = ["SurfaceFit", "CurveFit", "SURFACE_TYPES", "CURVE_TYPES", "deviation_stats", "within_tolerance"]
 
@@ -151,7 +151,7 @@ class SurfaceFit(_Fit):
     """
 
     @cached_property
-    def surface(self):
+    def surface(self) -> Surface | None:
         """The geometric surface (``Plane``, ``Sphere``, ...), rebuilt from ``params``; None if there are none."""
         return surface_from_params(self.type, self.params) if self.params else None
 
@@ -188,7 +188,7 @@ class CurveFit(_Fit):
     """
 
     @cached_property
-    def curve(self):
+    def curve(self) -> Curve | None:
         """The geometric curve (``Line``, ``Circle``, ``BSplineCurve``) rebuilt from ``params``."""
         return curve_from_params(self.type, self.params) if self.params else None
 

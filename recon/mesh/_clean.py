@@ -197,7 +197,7 @@ def _validated(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     f = f.astype(np.int64, copy=False)
     if f.min() < 0 or f.max() >= len(v):
         raise MeshError(f"faces index vertices outside 0..{len(v) - 1} (found {f.min()}..{f.max()})")
-    bad = ~np.isfinite(v).all(axis=1)
+    bad = np.logical_not(np.isfinite(v).all(axis=1))
     if bad.any():
         n_bad = int(bad[f].any(axis=1).sum())
         if n_bad:
@@ -219,8 +219,8 @@ def _weld(v: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     fin = np.isfinite(v)
     finite = fin[:, 0] & fin[:, 1] & fin[:, 2]  # unreferenced non-finite vertices are each their own cluster
     vv = v if finite.all() else np.where(finite[:, None], v, 0.0)
-    lo, hi = _extremes(vv) if n else (None, None)
-    span = float((hi - lo).max()) if n else 0.0
+    lo, hi = _extremes(vv) if n else (np.zeros(3), np.zeros(3))
+    span = float((hi - lo).max())
     if tol > 0 and span / tol < 2.0**60:
         cells = np.floor((vv - lo) / tol).astype(np.int64)
         upper = int(cells.max()) + 1

@@ -105,7 +105,9 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
             raise MeshError(f"{path}: {problem}") from None
         raise MeshError(f"{path}: cannot read as {ext[1:].upper()}: {_one_line(err)}") from err
 
-    vertices, faces, offset = [], [], 0
+    placed_vertices: list[np.ndarray] = []
+    placed_faces: list[np.ndarray] = []
+    offset = 0
     for name, geom in scene.geometry.items():
         if not isinstance(geom, trimesh.Trimesh):
             log.warning("%s: skipping %s %r (not a triangle mesh)", path, type(geom).__name__, name)
@@ -123,15 +125,15 @@ def read_triangles(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
                     v = v @ matrix[:3, :3].T + matrix[:3, 3]
                     if np.linalg.det(matrix[:3, :3]) < 0:  # a mirror keeps the outside outside
                         f = f[:, [0, 2, 1]]
-            vertices.append(v)
-            faces.append(f + offset)
+            placed_vertices.append(v)
+            placed_faces.append(f + offset)
             offset += len(v)
-    if not faces:
+    if not placed_faces:
         if ext == ".stl" and (problem := _ascii_stl_problem(path)):
             raise MeshError(f"{path}: {problem}")
         raise MeshError(f"{path}: the file has no triangles")
-    log.debug("%s: read %d triangles from %d placements", path, sum(map(len, faces)), len(faces))
-    return np.concatenate(vertices), np.concatenate(faces)
+    log.debug("%s: read %d triangles from %d placements", path, sum(map(len, placed_faces)), len(placed_faces))
+    return np.concatenate(placed_vertices), np.concatenate(placed_faces)
 
 
 #: Binary STL: an 80-byte header, the triangle count (uint32), then 50 bytes per triangle.
@@ -154,6 +156,7 @@ def _binary_stl_problem(path: Path) -> str | None:
     if count is None:
         return f"the file is truncated ({size} bytes; a binary STL has an {_STL_HEADER}-byte header)"
     found = (size - _STL_HEADER) // _STL_TRIANGLE
+    expected = _STL_HEADER + _STL_TRIANGLE * count
     if size < expected:
         return f"the file is truncated (expected {count:,} triangles, found {found:,})"
     return (f"the file is longer than its triangle count says ({count:,} triangles are {expected:,} bytes, the file "

@@ -9,10 +9,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._array import row_norms
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["Mesh", "CleanReport", "VertexFaces"]
 
@@ -286,7 +290,7 @@ class Mesh:
 
     # -- interop ---------------------------------------------------------------------------------------------
 
-    def to_trimesh(self):
+    def to_trimesh(self) -> trimesh.Trimesh:
         """A ``trimesh.Trimesh`` on the same arrays, built with ``process=False`` so no index moves."""
         import trimesh
 

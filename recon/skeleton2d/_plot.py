@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import logging
 import os
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._io import atomic_path
 from ..errors import ExportError, InputError
 from ._types import SkeletonResult
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 __all__ = ["plot_decomposition", "KIND_COLORS"]
 
@@ -21,7 +25,8 @@ _SHAPE_COLOR = "#d9d9d9"
 _BOUNDARY_COLOR = "#404040"
 
 
-def plot_decomposition(result: SkeletonResult, *, ax=None, path: str | os.PathLike | None = None, dpi: int = 150):
+def plot_decomposition(result: SkeletonResult, *, ax: Axes | None = None, path: str | os.PathLike | None = None,
+                       dpi: int = 150) -> Axes:
     """Draw the shape, its parts, the segment graph's bridges and separators, and the skeleton on top.
 
     Junctions are yellow, terminals green, linear parts purple; bridges are dashed black, separator
@@ -96,9 +101,9 @@ def plot_decomposition(result: SkeletonResult, *, ax=None, path: str | os.PathLi
         is_bridge[np.asarray(sg.bridges, dtype=np.int64)] = True
     segs = np.asarray(sk.vertices, dtype=np.float64)[edges] if len(edges) else np.zeros((0, 2, 2))
     if (~is_bridge).any():
-        ax.add_collection(LineCollection(segs[~is_bridge], colors="black", linewidths=1.0, zorder=5))
+        ax.add_collection(LineCollection(list(segs[~is_bridge]), colors="black", linewidths=1.0, zorder=5))
     if is_bridge.any():
-        ax.add_collection(LineCollection(segs[is_bridge], colors="black", linewidths=1.4, linestyles="--", zorder=5))
+        ax.add_collection(LineCollection(list(segs[is_bridge]), colors="black", linewidths=1.4, linestyles="--", zorder=5))
 
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     pad = 0.03 * float(np.max(hi - lo))
@@ -108,10 +113,10 @@ def plot_decomposition(result: SkeletonResult, *, ax=None, path: str | os.PathLi
     ax.set_axis_off()
 
     if path is not None:
-        fig = ax.figure
         try:
             with atomic_path(path) as tmp:
-                fig.savefig(tmp, format="png", dpi=dpi)
+                # the root figure: an axes given on a subfigure has no savefig of its own
+                ax.figure.figure.savefig(tmp, format="png", dpi=dpi)
         except OSError as err:
             raise ExportError(f"cannot write plot {path}: {err}") from None
         log.info("wrote %s", path)

@@ -6,12 +6,14 @@ viewBox and transforms are applied) with y pointing up, so a plot of the shape i
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 import json
 import logging
 import os
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import InputError
 from ._types import Shape2D
@@ -79,7 +81,7 @@ def load_shape(path: str | os.PathLike, *, invert: bool = False) -> Shape2D:
     return shape_from_curves(curves, name=str(path))
 
 
-def shape_from_curves(curves, *, name: str = "curves") -> Shape2D:
+def shape_from_curves(curves: Sequence[npt.ArrayLike], *, name: str = "curves") -> Shape2D:
     """Validate closed polylines and pack them as a :class:`Shape2D`.
 
     Parameters
@@ -136,7 +138,7 @@ def shape_from_curves(curves, *, name: str = "curves") -> Shape2D:
     return Shape2D(curves=tuple(cleaned))
 
 
-def shape_from_mask(mask, *, invert: bool = False, name: str = "mask") -> Shape2D:
+def shape_from_mask(mask: npt.ArrayLike, *, invert: bool = False, name: str = "mask") -> Shape2D:
     """Trace the boundary of a binary silhouette.
 
     Contours are taken at level 0.5 on the zero-padded mask (so shapes touching the image border are
@@ -157,18 +159,18 @@ def shape_from_mask(mask, *, invert: bool = False, name: str = "mask") -> Shape2
     -------
     Shape2D
     """
-    mask = np.asarray(mask)
-    if mask.ndim != 2:
-        raise InputError(f"{name}: mask has shape {mask.shape}, expected a 2D (h, w) array")
-    mask = mask != 0
+    pixels = np.asarray(mask)
+    if pixels.ndim != 2:
+        raise InputError(f"{name}: mask has shape {pixels.shape}, expected a 2D (h, w) array")
+    fg = pixels != 0
     if invert:
-        mask = ~mask
-    if not mask.any():
+        fg = ~fg
+    if not fg.any():
         raise InputError(f"{name}: no foreground pixels" + (" after invert" if invert else ""))
-    h = mask.shape[0]
+    h = fg.shape[0]
     curves = []
     dropped = 0
-    for rc in _level_half_contours(mask):
+    for rc in _level_half_contours(fg):
         xy = np.column_stack([rc[:, 1] - 1.0, h - rc[:, 0]])
         xy = _drop_repeats(xy)
         if len(xy) < 3 or abs(_signed_area(xy)) < MIN_SPECK_AREA:
@@ -280,8 +282,9 @@ def _raster_mask(path: Path) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as im:
-            im.load()
+        with Image.open(path) as opened:
+            opened.load()
+            im: Image.Image = opened
             if im.mode == "P":
                 im = im.convert("RGBA" if "transparency" in im.info else "RGB")
             elif im.mode in ("LA", "PA"):
@@ -344,7 +347,7 @@ def _svg_curves(path: Path) -> list:
     step = max(diag, 1e-12) * _SVG_STEP
     out = []
     for segs in curves:
-        pts = []
+        pts: list[np.ndarray | list[list[float]]] = []
         for s in segs:
             if s.start is None or s.end is None:
                 continue
