@@ -21,7 +21,7 @@ ROOT = Path(recon.__file__).resolve().parent
 PYPROJECT = tomllib.loads((ROOT.parent / "pyproject.toml").read_text(encoding="utf-8"))
 
 #: public names still without full annotations: their modules are being split on other branches (issue 21)
-PENDING = {"decompose", "curve_network", "resample_curves"}
+PENDING: set[str] = set()
 #: imported only where installed: convert_many returns a DataFrame where pandas is
 OPTIONAL_IMPORTS = {"pandas"}
 #: run inside FreeCAD's own Python (freecadcmd), not recon's

@@ -23,9 +23,10 @@ from __future__ import annotations
 
 import logging
 import os
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
+from numpy.typing import ArrayLike
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
@@ -38,6 +39,11 @@ from ._curves import boundary_curves
 from ._regions import Regions, fitted_regions
 from ..mesh import Mesh
 from ..mesh import stable_argsort
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from ..fit import SurfaceFit
 from ._topology import Topology, topology, unique
 from ._types import Decomposition, Part, PartKind, SurfaceSkeleton
 
@@ -73,7 +79,7 @@ def default_jobs() -> int:
 
 
 def decompose(
-    mesh,
+    mesh: Mesh | trimesh.Trimesh | tuple[ArrayLike, ArrayLike],
     *,
     scale: float | None = None,
     omega_min: float | None = None,
@@ -333,7 +339,7 @@ def _part_fits(regions: Regions, labels, area, kinds) -> dict:
     key = labels[has] * np.int64(k) + lab[has]
     w = np.bincount(key, weights=area[has], minlength=n_parts * k).reshape(n_parts, k)
     tot = np.bincount(labels, weights=area, minlength=n_parts)
-    out = {}
+    out: dict[int, SurfaceFit] = {}
     if k == 0:
         return out
     best = w.argmax(axis=1)
@@ -614,7 +620,7 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
         lf, lg = comp[f], comp[g]
         pf, pg = patch[f], patch[g]
         changed = False
-        best: dict[int, tuple[float, int]] = {}
+        best: dict[tuple[int, int], float] = {}
         for a_l, b_l, b_p in ((lf, lg, pg), (lg, lf, pf)):
             sel = np.isin(a_l, list(orphans)) & (a_l != b_l)
             # neighbour code: critical part c ≥ 0 (preferred: weight + 1e9) or patch p → -(p + 2)

@@ -15,6 +15,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InputError
 from ..mesh._topology import stable_argsort, unique_rows
@@ -122,7 +123,7 @@ class CurveNetwork:
         return self.samples[s], self.sample_normals[s]
 
 
-def _check_input(vertices, faces, labels):
+def _check_input(vertices, faces, labels) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces)
     labels = np.asarray(labels)
@@ -143,7 +144,7 @@ def _check_input(vertices, faces, labels):
     return vertices, faces.astype(np.int64), labels.astype(np.int64)
 
 
-def curve_network(vertices, faces, labels) -> CurveNetwork:
+def curve_network(vertices: ArrayLike, faces: ArrayLike, labels: ArrayLike) -> CurveNetwork:
     """Chain the boundaries between differently labelled triangles into a network of vertices, edges and loops.
 
     Parameters

@@ -59,7 +59,7 @@ class NetworkGeometry:
 
 
 def _vertex_parts(network: CurveNetwork) -> list[list[int]]:
-    parts = [set() for _ in range(network.n_vertices)]
+    parts: list[set[int]] = [set() for _ in range(network.n_vertices)]
     for (a, b), (l, r) in zip(network.edge_vertices.tolist(), network.edge_parts.tolist()):
         for v in (a, b):
             parts[v].add(l)

@@ -37,6 +37,7 @@ import logging
 from collections.abc import Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -137,7 +138,7 @@ def default_omega_min(shape: Shape2D, *, spacing: float | None = None) -> float:
     return max(OMEGA_MIN_FRACTION * shape.diagonal, 4.0 * float(spacing))
 
 
-def resample_curves(curves, spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def resample_curves(curves: Sequence[ArrayLike], spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Sample closed curves uniformly by arc length, with their curve potentials φ (§2).
 
     Each curve gets ``ceil(L / spacing)`` samples, but at least 16 (the spacing on that curve shrinks to
