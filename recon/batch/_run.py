@@ -201,7 +201,9 @@ def convert_many(
                 jobs.append({"url": part.url, "name": part.name, "note": part.note, "out": out, "suffix": suffix,
                              "tolerance": tolerance, "preview": preview, "deviation": deviation,
                              "timeout": timeout, "key": key,
-                             "memory_limit": memory_limit, "size": part.size})
+                             # A local cluster started here has it as its workers' Dask limit, which the task reads.
+                             "memory_limit": None if client is None and scheduler is None else memory_limit,
+                             "size": part.size})
         rows += _run_jobs(jobs, rows, writer, client=client, scheduler=scheduler, workers=workers,
                           memory_limit=memory_limit, progress=progress)
     finally:

@@ -23,7 +23,8 @@ from pathlib import Path
 #: Test-only: a runner whose job's input file is named this aborts (SIGABRT), as a segfault in the CAD kernel
 #: would end it. Set in the environment of the workers; it has no effect otherwise.
 ABORT_ENV = "RECON_TEST_ABORT"
-#: Test-only, likewise: a part whose input file is named this never finishes (a runaway conversion).
+#: Test-only, likewise: a part whose input file is named this hangs (a runaway conversion) until a file named as
+#: the input plus ".release" appears beside it.
 HANG_ENV = "RECON_TEST_HANG"
 
 
@@ -49,8 +50,8 @@ def convert_job(job: dict) -> dict:
 
     if os.environ.get(ABORT_ENV) and os.environ[ABORT_ENV] == job["input_name"]:
         os.abort()
-    while os.environ.get(HANG_ENV) and os.environ[HANG_ENV] == job["input_name"]:
-        time.sleep(1.0)
+    while os.environ.get(HANG_ENV) == job["input_name"] and not os.path.exists(job["mesh"] + ".release"):
+        time.sleep(0.2)
     stage, name = Path(job["stage"]), job["name"]
     # jobs=1: the batch's parallelism is one part per worker; a second process per part would only compete.
     result = convert(job["mesh"], tolerance=job["tolerance"], deviation=job.get("deviation", True), jobs=1)
