@@ -176,7 +176,9 @@ def test_rerun_skips_finished_parts_redoes_the_rest(local_run, external):
     assert run(prism, "--tolerance", "0.01", "--no-deviation") == 0
     row = _rows(out)["prism.stl"]
     assert row["status"] == "ok" and row["mesh_to_shape_p95_pct"] == "" and "NOT verified" in row["message"]
-    assert json.loads((out / "prism.report.json").read_text())["deviation"] is None
+    report = json.loads((out / "prism.report.json").read_text())
+    assert "deviation" not in report and report["verdict"]["within_tolerance"] is None
+    assert report["batch"]["deviation"] is False
 
 
 def test_killed_worker_stage_purged_rows_written_as_they_arrive(external, tmp_path):
