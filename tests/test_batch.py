@@ -265,6 +265,33 @@ def test_memory_limit_is_the_workers(tmp_path, capsys):
     assert not (out / "prism_coarse.step").exists()
 
 
+def _hog(n: int) -> int:
+    data = b"x" * n  # n bytes touched: the worker's own memory
+    time.sleep(60)
+    return len(data)
+
+
+def test_worker_killed_by_dask_memory_limit_is_named():
+    """A worker that Dask's nanny restarts for passing its memory limit: the part's row says so (the scheduler's
+    worker-restart-memory event of that worker), not just that a worker died."""
+    import dask
+    from distributed import Client, LocalCluster
+
+    from recon.batch._run import task_failure
+
+    # 300 MB: above a bare worker (~100 MiB), below what the task holds (400 MiB); one death ends the task.
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, memory_limit="300MB", host="127.0.0.1") as cluster, \
+            Client(cluster) as client:
+        with pytest.raises(Exception) as err:
+            client.submit(_hog, 400 * 2**20, pure=False).result()
+        message = task_failure(client, err.value)
+    assert type(err.value).__name__ == "KilledWorker"
+    assert message.startswith("killed by the memory limit: its worker's memory (") and "tried on 1 worker;" in message
+    used = float(message.split("(")[1].split(" MiB")[0].replace(",", ""))
+    assert 0.95 * 300e6 / 2**20 < used < 400 + 300e6 / 2**20  # past the nanny's 95 %; at most the hog and a worker
+
+
 def test_fsspec_urls_timeout_and_memory_limit(tmp_path):
     """memory:// lives in one process, so the cluster is threads in this process; the worker reads and writes
     through fsspec, not the disk. A file:// input is read in place."""

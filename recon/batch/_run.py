@@ -278,6 +278,7 @@ def task_failure(client, err: BaseException) -> str:
     if type(err).__name__ != "KilledWorker":
         return " ".join(f"the task failed on its worker: {type(err).__name__}: {err}".split())[:300]
     tries = getattr(err, "allowed_failures", 0) + 1
+    tried = f"tried on {tries} worker{'s' if tries > 1 else ''}"
     last = getattr(getattr(err, "last_worker", None), "address", None)
     try:
         events = client.get_events("worker-restart-memory")
@@ -285,6 +286,6 @@ def task_failure(client, err: BaseException) -> str:
         events = ()
     for _, event in events:
         if event.get("worker") == last:
-            return (f"killed by the memory limit: its worker ({last}) passed Dask's memory limit at "
-                    f"{event.get('rss', 0) / 2**20:,.0f} MiB and was restarted ({tries} workers died running it)")
-    return f"the worker died running it ({tries} workers in turn; last {last}): a crash or the machine"
+            return (f"killed by the memory limit: its worker's memory ({event.get('rss', 0) / 2**20:,.0f} MiB) "
+                    f"passed Dask's limit and its nanny restarted it ({tried}; last {last})")
+    return f"its worker died running it ({tried}; last {last}): a crash, or the machine or its scheduler ended it"
