@@ -125,11 +125,25 @@ def isolation() -> None:
         shutil.rmtree(out)
 
 
-def _inputs(corpus: str | None, count: int) -> list[str]:
-    """The export parts (the first ``count`` STL files of ``corpus``, else the fixtures) and the real scans."""
-    parts = sorted(str(p) for p in (Path(corpus).resolve().glob("*.stl") if corpus else DATA.glob("*.stl")))
-    parts = parts[:count] if corpus else parts
-    scans = [f"/work/shared/meshes/{s}.off" for s in SCANS if Path(f"/work/shared/meshes/{s}.off").exists()]
+def _triangles(stl: Path) -> int | None:
+    """The triangle count the corpus records beside its mesh (``seed_N.json``), if it does."""
+    info = stl.with_suffix(".json")
+    if not info.exists():
+        return None
+    import json
+
+    return json.loads(info.read_text()).get("triangles")
+
+
+def _inputs(corpus: str | None, count: int, *, max_triangles: int | None = None,
+            scans: list[str] = SCANS) -> list[str]:
+    """The export parts (the first ``count`` STL files of ``corpus`` by name with at most ``max_triangles``, else
+    the fixtures) and the real scans named."""
+    found = sorted(Path(corpus).resolve().glob("*.stl") if corpus else DATA.glob("*.stl"))
+    if max_triangles:
+        found = [p for p in found if (_triangles(p) or 0) <= max_triangles]
+    parts = [str(p) for p in found][:count] if corpus else [str(p) for p in found]
+    scans = [f"/work/shared/meshes/{s}.off" for s in scans if Path(f"/work/shared/meshes/{s}.off").exists()]
     print(f"parts: {len(parts)} from {corpus or 'fixtures/data'}, scans: {len(scans)}", file=sys.stderr)
     return parts + scans
 
@@ -202,6 +216,8 @@ def main() -> None:
     ap.add_argument("what", choices=["overhead", "isolation", "throughput", "alone"])
     ap.add_argument("--corpus", help="folder of export-corpus STL files (default: the fixtures)")
     ap.add_argument("--count", type=int, default=40, help="corpus parts taken, first by name (default 40)")
+    ap.add_argument("--max-triangles", type=int, help="only corpus parts of at most this many triangles")
+    ap.add_argument("--scans", nargs="*", default=SCANS, help="real meshes of /work/shared/meshes taken (names)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--timeout", type=float, help="seconds per part (swept corpus parts can run for many minutes)")
     ap.add_argument("--memory-limit", help="Dask's memory limit per worker, and per part (e.g. 4GB)")
@@ -213,10 +229,11 @@ def main() -> None:
     elif args.what == "isolation":
         isolation()
     elif args.what == "throughput":
-        throughput(_inputs(args.corpus, args.count), args.workers, timeout=args.timeout,
+        throughput(_inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans), args.workers, timeout=args.timeout,
                    memory_limit=args.memory_limit, save=args.save)
     else:
-        alone(_inputs(args.corpus, args.count), timeout=args.timeout, save=args.save)
+        alone(_inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans),
+              timeout=args.timeout, save=args.save)
 
 
 if __name__ == "__main__":
