@@ -229,8 +229,8 @@ def main() -> None:
     elif args.what == "isolation":
         isolation()
     elif args.what == "throughput":
-        throughput(_inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans), args.workers, timeout=args.timeout,
-                   memory_limit=args.memory_limit, save=args.save)
+        inputs = _inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans)
+        throughput(inputs, args.workers, timeout=args.timeout, memory_limit=args.memory_limit, save=args.save)
     else:
         alone(_inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans),
               timeout=args.timeout, save=args.save)
