@@ -226,6 +226,35 @@ def test_killed_worker_stage_purged_rows_written_as_they_arrive(external, tmp_pa
     _until(lambda: _gone(runner[0]))
 
 
+def test_ctrl_c_keeps_what_finished(external, tmp_path):
+    """`recon batch` interrupted (SIGINT) while one part runs: exit 130, the finished part's row in summary.csv and
+    summary.html, its files in place; the rerun skips it."""
+    address, _ = external
+    src = tmp_path / "parts"
+    src.mkdir()
+    shutil.copy(GOOD, src / "prism.stl")
+    shutil.copy(GOOD, src / "hang.stl")
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "recon", "batch", str(src), "--out", str(out), "--scheduler", address, "--no-preview"]
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    proc = subprocess.Popen(cmd, env=env, stderr=subprocess.PIPE, text=True)
+    try:
+        _until(lambda: _csv(out) or proc.poll() is not None)
+        assert proc.poll() is None  # hang.stl holds the run open
+        proc.send_signal(signal.SIGINT)
+        err = proc.communicate(timeout=120)[1]
+        assert proc.returncode == 130 and not list(out.glob("hang*"))
+    finally:
+        proc.kill()
+        (src / "hang.stl.release").touch()  # the part left running on its worker ends (and writes its files)
+    assert f"[1/2] ok {src / 'prism.stl'}: 8 faces" in err  # a line per finished part when not on a terminal
+    assert [(r["input"], r["status"]) for r in _csv(out)] == [(str(src / "prism.stl"), "ok")]
+    assert "1 parts: 0 error, 0 invalid, 1 ok, 0 skipped" in (out / "summary.html").read_text()
+    assert (out / "prism.step").exists() and (out / "prism.report.json").exists()
+    assert main(["batch", str(src / "prism.stl"), "--out", str(out), "--scheduler", address]) == 0
+    assert _csv(out)[0]["status"] == "skipped"
+
+
 def _until(ready, thread=None, seconds: float = 300.0):
     """Poll ``ready()`` until it is truthy (and return it); fail past ``seconds`` or when ``thread`` ended."""
     deadline = time.monotonic() + seconds

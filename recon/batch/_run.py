@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -186,7 +187,7 @@ def convert_many(
     parts = name_parts(find_parts(specs, exclude=out))
     out = _prepare_out(out, parts, suffix)
 
-    jobs, rows = [], []
+    jobs, rows, owned = [], [], []
     keys = [run_key(part, version=__version__, tolerance=tolerance, fmt=format, deviation=deviation) for part in parts]
     earlier = [None] * len(parts) if force else finished_reports(out, parts, keys)
     writer = SummaryWriter(out)
@@ -204,11 +205,16 @@ def convert_many(
                              # A local cluster started here has it as its workers' Dask limit, which the task reads.
                              "memory_limit": None if client is None and scheduler is None else memory_limit,
                              "size": part.size})
-        rows += _run_jobs(jobs, rows, writer, client=client, scheduler=scheduler, workers=workers,
+        rows += _run_jobs(jobs, rows, writer, owned, client=client, scheduler=scheduler, workers=workers,
                           memory_limit=memory_limit, progress=progress)
     finally:
-        writer.close()
-        write_html(out, rows, title=f"recon batch: {out}", previews=preview)
+        # The summaries first: after Ctrl-C the command has ~2 s to end, and a local cluster takes longer to close.
+        try:
+            writer.close()
+            write_html(out, rows, title=f"recon batch: {out}", previews=preview)
+        finally:
+            for thing in owned:
+                thing.close()
     try:
         import pandas as pd
     except ImportError:
@@ -219,9 +225,11 @@ def convert_many(
     return frame.astype({"faces": "Int64"})  # a count, empty where nothing was written (not a float NaN)
 
 
-def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, memory_limit, progress) -> list[BatchRow]:
+def _run_jobs(jobs, done_rows, writer, owned, *, client, scheduler, workers, memory_limit,
+              progress) -> list[BatchRow]:
     """Submit the jobs, collect their rows as they finish. On Ctrl-C the futures are cancelled and what finished
-    stays in the summary (the caller writes it)."""
+    stays in the summary (the caller writes it). A client or cluster made here is put in ``owned`` for the
+    caller to close."""
     total, told = len(done_rows) + len(jobs), [0, 0]  # parts told to `progress`, and failed among them
 
     def tell(row=None, dashboard=None):
@@ -241,10 +249,11 @@ def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, memory_lim
 
     from ._task import run_part
 
-    client, owned = _client(client, scheduler, workers, memory_limit)
+    client, made = _client(client, scheduler, workers, memory_limit)
+    owned.extend(made)
     futures = []
     try:
-        tell(dashboard=_dashboard(client, local=len(owned) == 2))
+        tell(dashboard=_dashboard(client, local=len(made) == 2))
         for row in done_rows:
             tell(row)
         # The largest parts first (Dask runs higher priority first): the batch's tail is then small parts.
@@ -262,14 +271,11 @@ def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, memory_lim
             tell(row)
         return new
     except BaseException:
-        for f in futures:
-            f.cancel()
+        with contextlib.suppress(Exception):  # one request for all: each future's own cancel is a round trip
+            client.cancel(futures)
         done_rows.extend(new)  # the caller's summary keeps what finished before the interruption
         new.clear()
         raise
-    finally:
-        for thing in owned:
-            thing.close()
 
 
 def task_failure(client, err: BaseException) -> str:
