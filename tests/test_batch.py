@@ -282,9 +282,10 @@ def _csv(out: Path) -> list[dict]:
 
 
 def test_memory_limit_is_the_workers(tmp_path, capsys):
-    """--memory-limit sets the local cluster's Dask worker limit; the task holds the part's process to it. 250 MB
-    is above a worker's own ~100 MiB (below Dask's pause at 80 %) and below the ~360 MiB a runner holds once recon
-    and OpenCascade are imported: the part is stopped, and its row says by what."""
+    """--memory-limit sets the local cluster's Dask worker limit (the job carries none: the task reads the
+    worker's); the task holds the part's process to it. 250 MB leaves a bare worker below Dask's pause at 80 %
+    and is below the ~360 MiB a runner holds once recon and OpenCascade are imported: the part is stopped, and its
+    row says by what."""
     out = tmp_path / "out"
     code = main(["batch", str(GOOD), "--out", str(out), "--workers", "1", "--memory-limit", "250MB", "--no-preview"])
     assert code == 1
