@@ -2,7 +2,8 @@
 
     python bench/bench_batch.py overhead             # Dask no-op round trip, runner protocol round trip
     python bench/bench_batch.py isolation            # a crashing part: in the worker vs in a runner process
-    python bench/bench_batch.py throughput [--corpus DIR] [--workers 1 2]
+    python bench/bench_batch.py throughput [--corpus DIR] [--workers 1 2] [--timeout S] [--memory-limit 4GB]
+    python bench/bench_batch.py alone [--corpus DIR] [--timeout S]   # recon convert per part, for comparison
 
 Prints Markdown rows for bench/batch.md. Run it alone: it measures wall time on every core.
 """
@@ -124,42 +125,115 @@ def isolation() -> None:
         shutil.rmtree(out)
 
 
-def throughput(corpus: str | None, workers: list[int]) -> None:
+def _triangles(stl: Path) -> int | None:
+    """The triangle count the corpus records beside its mesh (``seed_N.json``), if it does."""
+    info = stl.with_suffix(".json")
+    if not info.exists():
+        return None
+    import json
+
+    return json.loads(info.read_text()).get("triangles")
+
+
+def _inputs(corpus: str | None, count: int, *, max_triangles: int | None = None,
+            scans: list[str] = SCANS) -> list[str]:
+    """The export parts (the first ``count`` STL files of ``corpus`` by name with at most ``max_triangles``, else
+    the fixtures) and the real scans named."""
+    found = sorted(Path(corpus).resolve().glob("*.stl") if corpus else DATA.glob("*.stl"))
+    if max_triangles:
+        found = [p for p in found if (_triangles(p) or 0) <= max_triangles]
+    parts = [str(p) for p in found][:count] if corpus else [str(p) for p in found]
+    scans = [f"/work/shared/meshes/{s}.off" for s in scans if Path(f"/work/shared/meshes/{s}.off").exists()]
+    print(f"parts: {len(parts)} from {corpus or 'fixtures/data'}, scans: {len(scans)}", file=sys.stderr)
+    return parts + scans
+
+
+def throughput(inputs: list[str], workers: list[int], *, timeout: float | None, memory_limit: str | None,
+               save: Path) -> None:
+    """Every input on a fresh local cluster of n workers (its start timed apart); the rows kept in ``save``."""
+    from distributed import Client, LocalCluster
+
     from recon.batch import convert_many
 
-    parts = sorted(str(p) for p in DATA.glob("*.stl"))
-    if corpus:
-        parts = sorted(str(p) for p in Path(corpus).glob("*.stl"))[:40]
-    scans = [f"/work/shared/meshes/{s}.off" for s in SCANS if Path(f"/work/shared/meshes/{s}.off").exists()]
-    print(f"parts: {len(parts)} from {'the corpus' if corpus else 'fixtures/data'}, scans: {len(scans)}",
-          file=sys.stderr)
     base = {}
+    save.mkdir(parents=True, exist_ok=True)
     for n in workers:
         out = tempfile.mkdtemp(prefix=f"bench-batch-{n}-")
         t = time.perf_counter()
-        rows = convert_many(parts + scans, out, workers=n, preview=False, force=True)
-        wall = time.perf_counter() - t
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                          memory_limit=memory_limit or "auto") as cluster, Client(cluster) as client:
+            start = time.perf_counter() - t
+            t = time.perf_counter()
+            rows = convert_many(inputs, out, client=client, preview=False, force=True, timeout=timeout,
+                                memory_limit=memory_limit)
+            wall = time.perf_counter() - t
+        rows.to_csv(save / f"workers{n}.csv", index=False)
         busy = float(rows["seconds"].sum())
         counts = rows["status"].value_counts().to_dict()
-        base.setdefault("wall", wall)
-        eff = base["wall"] / (n * wall)
-        print(f"| {n} | {len(rows)} | {wall:.1f} | {60 * len(rows) / wall:.1f} | {busy:.1f} | {eff:.2f} | "
-              f"{', '.join(f'{v} {k}' for k, v in counts.items())} |")
+        base.setdefault("wall", wall * n)
+        print(f"| {n} | {len(rows)} | {start:.1f} | {wall:.1f} | {60 * len(rows) / wall:.2f} | {busy:.1f} | "
+              f"{busy / (n * wall):.2f} | {base['wall'] / (n * wall):.2f} | "
+              f"{', '.join(f'{v} {k}' for k, v in counts.items())} |", flush=True)
         shutil.rmtree(out)
+
+
+def alone(inputs: list[str], *, timeout: float | None, save: Path) -> None:
+    """Each input through ``python -m recon convert`` (one process per part, as a shell loop does), its wall
+    time beside the part's time inside ``recon batch`` (``save/workers1.csv``)."""
+    import csv
+    import subprocess
+
+    batch = {}
+    if (save / "workers1.csv").exists():
+        with open(save / "workers1.csv", newline="") as fh:
+            batch = {r["input"]: r for r in csv.DictReader(fh)}
+    out = Path(tempfile.mkdtemp(prefix="bench-alone-"))
+    rows = []
+    for mesh in inputs:
+        cmd = [sys.executable, "-m", "recon", "convert", mesh, str(out / "part.step"), "--jobs", "1", "-q"]
+        t = time.perf_counter()
+        try:
+            code = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=timeout).returncode
+        except subprocess.TimeoutExpired:
+            code = "timeout"
+        wall = time.perf_counter() - t
+        b = batch.get(mesh, {})
+        rows.append((mesh, code, wall, b.get("status"), float(b["seconds"]) if b else None))
+        print(f"{Path(mesh).name}: convert exit {code} {wall:.1f} s; in batch {b.get('status')} "
+              f"{b.get('seconds')} s", file=sys.stderr, flush=True)
+        with open(save / "alone.csv", "w", newline="") as fh:
+            csv.writer(fh).writerows([("input", "exit", "wall", "batch_status", "batch_seconds"), *rows])
+    both = [(w, s) for _, c, w, st, s in rows if c in (0, 1) and st in ("ok", "invalid")]
+    total_alone, total_batch = sum(w for w, _ in both), sum(s for _, s in both)
+    print(f"| {len(both)} parts converted both ways | recon convert, one process each: {total_alone:.1f} s | "
+          f"inside recon batch (the part's own time): {total_batch:.1f} s | "
+          f"difference per part: {(total_alone - total_batch) / max(len(both), 1):.2f} s |")
+    shutil.rmtree(out)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("what", choices=["overhead", "isolation", "throughput"])
-    ap.add_argument("--corpus")
+    ap.add_argument("what", choices=["overhead", "isolation", "throughput", "alone"])
+    ap.add_argument("--corpus", help="folder of export-corpus STL files (default: the fixtures)")
+    ap.add_argument("--count", type=int, default=40, help="corpus parts taken, first by name (default 40)")
+    ap.add_argument("--max-triangles", type=int, help="only corpus parts of at most this many triangles")
+    ap.add_argument("--scans", nargs="*", default=SCANS, help="real meshes of /work/shared/meshes taken (names)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--timeout", type=float, help="seconds per part (swept corpus parts can run for many minutes)")
+    ap.add_argument("--memory-limit", help="Dask's memory limit per worker, and per part (e.g. 4GB)")
+    ap.add_argument("--save", type=Path, default=Path(tempfile.gettempdir()) / "bench-batch",
+                    help="folder for the rows of each run (CSV)")
     args = ap.parse_args()
     if args.what == "overhead":
         overhead()
     elif args.what == "isolation":
         isolation()
+    elif args.what == "throughput":
+        inputs = _inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans)
+        throughput(inputs, args.workers, timeout=args.timeout, memory_limit=args.memory_limit, save=args.save)
     else:
-        throughput(args.corpus, args.workers)
+        alone(_inputs(args.corpus, args.count, max_triangles=args.max_triangles, scans=args.scans),
+              timeout=args.timeout, save=args.save)
 
 
 if __name__ == "__main__":

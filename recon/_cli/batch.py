@@ -29,7 +29,12 @@ def add_parser(sub):
     p.add_argument("--format", choices=["step", "brep", "stl"], default="step", help="output format (default: step)")
     p.add_argument("--timeout", type=float, metavar="S", help="seconds one part may take before it is stopped and "
                    "counted as failed (default: no limit)")
+    p.add_argument("--memory-limit", metavar="SIZE", help="memory per worker of the local cluster (Dask's worker "
+                   "memory limit, e.g. 4GB) and per part on any cluster: a part past it is stopped and counted as "
+                   "failed (default: the machine's memory shared among the workers, or the cluster workers' own)")
     p.add_argument("--force", action="store_true", help="convert again the parts an earlier run finished")
+    p.add_argument("--no-deviation", action="store_true", help="skip measuring each result's deviation (faster; "
+                   "results are then NOT verified, as with recon convert --no-deviation)")
     p.add_argument("--no-preview", action="store_true", help="write no preview pictures (faster)")
     p.set_defaults(func=run)
     return p
@@ -101,7 +106,8 @@ def run(args) -> int:
     try:
         rows = convert_many(args.inputs, args.out, scheduler=args.scheduler, workers=args.workers,
                             tolerance=args.tolerance, format=args.format, timeout=args.timeout, force=args.force,
-                            preview=not args.no_preview, progress=show)
+                            preview=not args.no_preview, deviation=not args.no_deviation,
+                            memory_limit=args.memory_limit, progress=show)
     finally:
         show.close()
     statuses = list(rows["status"]) if hasattr(rows, "columns") else [r.status for r in rows]

@@ -144,11 +144,12 @@ def name_parts(parts: list[Part]) -> list[Part]:
     return named
 
 
-def run_key(part: Part, *, version: str, tolerance: float | None, fmt: str) -> dict:
+def run_key(part: Part, *, version: str, tolerance: float | None, fmt: str, deviation: bool = True) -> dict:
     """What a finished part's report must record for a rerun to skip it: the same input (URL, size, time), the
-    same recon and the options that change the result."""
+    same recon and the options that change the result (a result whose deviation was not measured is not the
+    verified one a run with the deviation asks for)."""
     return {"recon": version, "input": part.url, "size": part.size, "mtime": part.mtime,
-            "tolerance": tolerance, "format": fmt}
+            "tolerance": tolerance, "format": fmt, "deviation": deviation}
 
 
 def finished_reports(out: str, parts: list[Part], keys: list[dict]) -> list[dict | None]:

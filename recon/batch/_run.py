@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
@@ -41,7 +42,23 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def _check_options(fmt: str, tolerance, timeout, workers, memory_limit) -> None:
+def _memory_bytes(memory_limit: int | str | None) -> int | None:
+    """``memory_limit`` in bytes: an int, or a size Dask reads ("4GB", "500MiB")."""
+    if memory_limit is None:
+        return None
+    if isinstance(memory_limit, str):
+        from dask.utils import parse_bytes
+
+        try:
+            memory_limit = parse_bytes(memory_limit)
+        except ValueError:
+            raise InputError(f"memory limit must be a size such as 4GB or 500MiB, got {memory_limit!r}") from None
+    if not (isinstance(memory_limit, int) and memory_limit > 0):
+        raise InputError(f"memory limit must be a positive number of bytes, got {memory_limit}")
+    return memory_limit
+
+
+def _check_options(fmt: str, tolerance, timeout, workers) -> None:
     if fmt not in OUTPUT_FORMATS:
         raise InputError(f"format must be one of {', '.join(OUTPUT_FORMATS)}, got {fmt!r}")
     if tolerance is not None and not (isinstance(tolerance, (int, float)) and math.isfinite(tolerance)
@@ -49,8 +66,6 @@ def _check_options(fmt: str, tolerance, timeout, workers, memory_limit) -> None:
         raise InputError(f"tolerance must be a positive finite length, got {tolerance}")
     if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
         raise InputError(f"timeout must be a positive number of seconds, got {timeout}")
-    if memory_limit is not None and not (isinstance(memory_limit, int) and memory_limit > 0):
-        raise InputError(f"memory_limit must be a positive number of bytes, got {memory_limit}")
     if workers is not None and not (isinstance(workers, int) and workers >= 1):
         raise InputError(f"workers must be at least 1, got {workers}")
 
@@ -71,8 +86,10 @@ def _prepare_out(out: str, parts: list[Part], suffix: str) -> str:
     return root if local else fs.unstrip_protocol(root)
 
 
-def _client(client, scheduler: str | None, workers: int | None):
-    """The client to use and what to close afterwards (nothing when the caller brought the client)."""
+def _client(client, scheduler: str | None, workers: int | None, memory_limit: int | None):
+    """The client to use and what to close afterwards (nothing when the caller brought the client). A local
+    cluster's workers get ``memory_limit`` as Dask's own worker memory limit (default: the machine's memory shared
+    out among them)."""
     if client is not None:
         return client, []
     from distributed import Client, LocalCluster
@@ -83,7 +100,8 @@ def _client(client, scheduler: str | None, workers: int | None):
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {err}") from None
     # One thread per worker process: a conversion holds a core, and processes keep parts apart.
-    cluster = LocalCluster(n_workers=workers or _cores(), threads_per_worker=1, processes=True, host="127.0.0.1")
+    cluster = LocalCluster(n_workers=workers or _cores(), threads_per_worker=1, processes=True, host="127.0.0.1",
+                           memory_limit=memory_limit or "auto")
     c = Client(cluster)
     return c, [c, cluster]
 
@@ -116,7 +134,8 @@ def convert_many(
     timeout: float | None = None,
     force: bool = False,
     preview: bool = True,
-    memory_limit: int | None = None,
+    deviation: bool = True,
+    memory_limit: int | str | None = None,
     progress: Callable[[BatchProgress], None] | None = None,
 ) -> pandas.DataFrame | list[BatchRow]:
     """Convert many meshes on a Dask cluster; each one as ``recon.convert`` would, in its own process.
@@ -144,8 +163,13 @@ def convert_many(
         Convert again parts an earlier run finished (default: skip them).
     preview : bool
         Write a preview picture per part (for ``summary.html``).
-    memory_limit : int, optional
-        Bytes one part's process may use; past it the part is an ``error`` row (default: the worker's memory limit).
+    deviation : bool
+        Measure each result's deviation from its mesh (``recon convert --no-deviation`` when False: faster, and the
+        row's message says the result is NOT verified).
+    memory_limit : int or str, optional
+        Bytes (or a size such as ``"4GB"``). For the local cluster this function starts it is Dask's worker memory
+        limit; for every cluster, the most one part's process may use: past it the process is killed and the part is
+        an ``error`` row that says so (default: the worker's own memory limit).
     progress : callable(BatchProgress), optional
 
     Returns
@@ -156,7 +180,8 @@ def convert_many(
     from .. import __version__
 
     specs = [str(s) for s in ([inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs))]
-    _check_options(format, tolerance, timeout, workers, memory_limit)
+    _check_options(format, tolerance, timeout, workers)
+    memory_limit = _memory_bytes(memory_limit)
     if client is not None and (scheduler is not None or workers is not None):
         raise InputError("give either a client, a scheduler address or a number of workers")
     if scheduler is not None and workers is not None:
@@ -166,8 +191,8 @@ def convert_many(
     parts = name_parts(find_parts(specs, exclude=out))
     out = _prepare_out(out, parts, suffix)
 
-    jobs, rows = [], []
-    keys = [run_key(part, version=__version__, tolerance=tolerance, fmt=format) for part in parts]
+    jobs, rows, owned = [], [], []
+    keys = [run_key(part, version=__version__, tolerance=tolerance, fmt=format, deviation=deviation) for part in parts]
     earlier = [None] * len(parts) if force else finished_reports(out, parts, keys)
     writer = SummaryWriter(out)
     try:
@@ -179,13 +204,21 @@ def convert_many(
                 writer.add(rows[-1])
             else:
                 jobs.append({"url": part.url, "name": part.name, "note": part.note, "out": out, "suffix": suffix,
-                             "tolerance": tolerance, "preview": preview, "timeout": timeout, "key": key,
-                             "memory_limit": memory_limit, "size": part.size})
-        rows += _run_jobs(jobs, rows, writer, client=client, scheduler=scheduler, workers=workers,
-                          progress=progress)
+                             "tolerance": tolerance, "preview": preview, "deviation": deviation,
+                             "timeout": timeout, "key": key,
+                             # A local cluster started here has it as its workers' Dask limit, which the task reads.
+                             "memory_limit": None if client is None and scheduler is None else memory_limit,
+                             "size": part.size})
+        rows += _run_jobs(jobs, rows, writer, owned, client=client, scheduler=scheduler, workers=workers,
+                          memory_limit=memory_limit, progress=progress)
     finally:
-        writer.close()
-        write_html(out, rows, title=f"recon batch: {out}", previews=preview)
+        # The summaries first: after Ctrl-C the command has ~2 s to end, and a local cluster takes longer to close.
+        try:
+            writer.close()
+            write_html(out, rows, title=f"recon batch: {out}", previews=preview)
+        finally:
+            for thing in owned:
+                thing.close()
     try:
         import pandas as pd
     except ImportError:
@@ -196,9 +229,11 @@ def convert_many(
     return frame.astype({"faces": "Int64"})  # a count, empty where nothing was written (not a float NaN)
 
 
-def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, progress) -> list[BatchRow]:
+def _run_jobs(jobs, done_rows, writer, owned, *, client, scheduler, workers, memory_limit,
+              progress) -> list[BatchRow]:
     """Submit the jobs, collect their rows as they finish. On Ctrl-C the futures are cancelled and what finished
-    stays in the summary (the caller writes it)."""
+    stays in the summary (the caller writes it). A client or cluster made here is put in ``owned`` for the
+    caller to close."""
     total, told = len(done_rows) + len(jobs), [0, 0]  # parts told to `progress`, and failed among them
 
     def tell(row=None, dashboard=None):
@@ -218,10 +253,11 @@ def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, progress) 
 
     from ._task import run_part
 
-    client, owned = _client(client, scheduler, workers)
+    client, made = _client(client, scheduler, workers, memory_limit)
+    owned.extend(made)
     futures = []
     try:
-        tell(dashboard=_dashboard(client, local=len(owned) == 2))
+        tell(dashboard=_dashboard(client, local=len(made) == 2))
         for row in done_rows:
             tell(row)
         # The largest parts first (Dask runs higher priority first): the batch's tail is then small parts.
@@ -233,19 +269,33 @@ def _run_jobs(jobs, done_rows, writer, *, client, scheduler, workers, progress) 
             try:
                 row = BatchRow(**future.result())
             except Exception as err:  # noqa: BLE001 — the worker died (KilledWorker), or cannot run recon at all
-                why = "the worker died" if type(err).__name__ == "KilledWorker" else "the task failed on its worker"
-                row = BatchRow(job["url"], "", "error", None, None, None, 0.0,
-                               " ".join(f"{why}: {type(err).__name__}: {err}".split())[:300])
+                row = BatchRow(job["url"], "", "error", None, None, None, 0.0, task_failure(client, err))
             new.append(row)
             writer.add(row)
             tell(row)
         return new
     except BaseException:
-        for f in futures:
-            f.cancel()
+        with contextlib.suppress(Exception):  # one request for all: each future's own cancel is a round trip
+            client.cancel(futures)
         done_rows.extend(new)  # the caller's summary keeps what finished before the interruption
         new.clear()
         raise
-    finally:
-        for thing in owned:
-            thing.close()
+
+
+def task_failure(client, err: BaseException) -> str:
+    """One line on a part whose task raised: its workers died (when Dask's nanny restarted the last one for
+    passing its memory limit, that), or the task could not run recon at all."""
+    if type(err).__name__ != "KilledWorker":
+        return " ".join(f"the task failed on its worker: {type(err).__name__}: {err}".split())[:300]
+    tries = getattr(err, "allowed_failures", 0) + 1
+    tried = f"tried on {tries} worker{'s' if tries > 1 else ''}"
+    last = getattr(getattr(err, "last_worker", None), "address", None)
+    try:
+        events = client.get_events("worker-restart-memory")
+    except Exception:  # noqa: BLE001 — the events only sharpen the message
+        events = ()
+    for _, event in events:
+        if event.get("worker") == last:
+            return (f"killed by the memory limit: its worker's memory ({event.get('rss', 0) / 2**20:,.0f} MiB) "
+                    f"passed Dask's limit and its nanny restarted it ({tried}; last {last})")
+    return f"its worker died running it ({tried}; last {last}): a crash, or the machine or its scheduler ended it"

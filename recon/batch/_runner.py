@@ -23,6 +23,9 @@ from pathlib import Path
 #: Test-only: a runner whose job's input file is named this aborts (SIGABRT), as a segfault in the CAD kernel
 #: would end it. Set in the environment of the workers; it has no effect otherwise.
 ABORT_ENV = "RECON_TEST_ABORT"
+#: Test-only, likewise: a part whose input file is named this hangs (a runaway conversion) until a file named as
+#: the input plus ".release" appears beside it.
+HANG_ENV = "RECON_TEST_HANG"
 
 
 def _one_line(text: object, limit: int = 300) -> str:
@@ -47,9 +50,11 @@ def convert_job(job: dict) -> dict:
 
     if os.environ.get(ABORT_ENV) and os.environ[ABORT_ENV] == job["input_name"]:
         os.abort()
+    while os.environ.get(HANG_ENV) == job["input_name"] and not os.path.exists(job["mesh"] + ".release"):
+        time.sleep(0.2)
     stage, name = Path(job["stage"]), job["name"]
     # jobs=1: the batch's parallelism is one part per worker; a second process per part would only compete.
-    result = convert(job["mesh"], tolerance=job["tolerance"], jobs=1)
+    result = convert(job["mesh"], tolerance=job["tolerance"], deviation=job.get("deviation", True), jobs=1)
     files = [stage / (name + job["suffix"])]
     write_checked(result, files[0], name=name)  # the verdict judges the file as written, as `recon convert` does
     report = dict(result.report, batch=job["key"])
@@ -67,12 +72,18 @@ def convert_job(job: dict) -> dict:
         "faces": report["n_faces"],
         "valid": bool(report["validity"]["ok"]),
         "p95": (dev.get("mesh_to_shape") or {}).get("p95_pct"),
-        "why": "" if report_ok(report) else _why(report),
+        "why": _why(report),
     }
 
 
 def _why(report: dict) -> str:
-    """One line on why a written result is not good: the verdict's failed rules where the report has them."""
+    """One line on why a written result is not good (the verdict's failed rules), or that a good one's deviation
+    was not measured ("" for a good, verified result)."""
+    from ._inputs import report_ok
+
+    if report_ok(report):
+        return "" if report["verdict"].get("within_tolerance") is not None else \
+            "deviation NOT verified (not measured: --no-deviation)"
     failed = [r for r in report["verdict"]["rules"] if r["ok"] is False]
     words = "; ".join(f"{r['rule']}: {r['detail'] or r['value']}"
                       + (f" ({', '.join(r['faces'][:3])})" if r["faces"] else "") for r in failed)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import html
 import io
+import os
 import posixpath
 import time
 from dataclasses import astuple, dataclass, fields
@@ -154,10 +155,12 @@ def write_html(out: str, rows: list[BatchRow], *, title: str = "recon batch", pr
             + "\n".join(body) + f"</tbody></table><script>{_SCRIPT}</script></body></html>\n")
     path = posixpath.join(root, "summary.html")
     if is_local(fs):
-        from .._io import atomic_path
-
-        with atomic_path(path) as tmp, open(tmp, "w") as fh:
+        # Not recon's atomic_path, which refuses once the run is interrupted: the summary of what finished is what
+        # an interrupted batch keeps. Written beside and renamed, a reader never sees half a page.
+        tmp = posixpath.join(root, f".summary.html.{os.getpid()}")
+        with open(tmp, "w") as fh:
             fh.write(page)
+        os.replace(tmp, path)
     else:
         with fs.open(path, "w") as fh:
             fh.write(page)

@@ -81,8 +81,8 @@ class _Runner:
                     return {"error": f"timed out after {timeout:g} s"}
                 if memory_limit and self.rss() > memory_limit:
                     self.kill()
-                    return {"error": f"stopped: used more than {memory_limit / 2**20:,.0f} MiB, the memory limit "
-                                     "per part"}
+                    return {"error": f"killed by the memory limit: the part's process passed "
+                                     f"{memory_limit / 2**20:,.0f} MiB"}
         line, _, self.buf = self.buf.partition(b"\n")
         return json.loads(line)
 
@@ -148,13 +148,24 @@ def _runner() -> _Runner:
     return runner
 
 
-def _worker_memory_limit() -> int | None:
+def _worker():
     try:
         from distributed import get_worker
 
-        return get_worker().memory_manager.memory_limit or None
-    except (ImportError, ValueError, AttributeError):
+        return get_worker()
+    except (ImportError, ValueError):  # not in a Dask task (called directly)
         return None
+
+
+def _worker_memory_limit() -> int | None:
+    return getattr(getattr(_worker(), "memory_manager", None), "memory_limit", None) or None
+
+
+def _stage_folder() -> str:
+    """A fresh folder for one part's input copy and results, inside the worker's Dask work directory: if the worker
+    is killed mid-part (SIGKILL, the machine's OOM killer) the folder outlives it, and the next worker Dask starts
+    on this machine purges the dead worker's directory (its lock file is free)."""
+    return tempfile.mkdtemp(prefix="recon-batch-", dir=getattr(_worker(), "local_directory", None))
 
 
 def _publish(src: str, dest_fs, dest: str) -> None:
@@ -172,13 +183,13 @@ def run_part(job: dict) -> dict:
     """Convert one part on this worker; return its summary row as a dict (never raises for the part's faults).
 
     ``job``: ``url``, ``name``, ``out`` (the output folder), ``suffix`` (of the shape), ``tolerance``,
-    ``preview``, ``timeout`` (seconds or None), ``key`` (stored in the report for reruns), ``memory_limit`` (bytes or
-    None: the worker's).
+    ``preview``, ``deviation``, ``timeout`` (seconds or None), ``key`` (stored in the report for reruns),
+    ``memory_limit`` (bytes or None: the worker's).
     """
     t0 = time.perf_counter()
     row = {"input": job["url"], "output": "", "status": "error", "faces": None, "valid": None,
            "mesh_to_shape_p95_pct": None, "seconds": 0.0, "message": job.get("note", "")}
-    stage = tempfile.mkdtemp(prefix="recon-batch-")
+    stage = _stage_folder()
     try:
         runner = _runner()
         t0 = time.perf_counter()  # a part's time is its own: a runner's start-up (imports) is the worker's
@@ -188,7 +199,8 @@ def run_part(job: dict) -> dict:
             mesh = os.path.join(stage, "input" + posixpath.splitext(in_path)[1].lower())
             in_fs.get_file(in_path, mesh)
         spec = {"mesh": mesh, "stage": stage, "name": job["name"], "suffix": job["suffix"],
-                "tolerance": job["tolerance"], "preview": job["preview"], "key": job["key"],
+                "tolerance": job["tolerance"], "preview": job["preview"], "deviation": job.get("deviation", True),
+                "key": job["key"],
                 "input_name": posixpath.basename(in_path)}
         limit = job.get("memory_limit") or _worker_memory_limit()
         result = runner.run(spec, timeout=job["timeout"], memory_limit=limit)
