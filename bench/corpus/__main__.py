@@ -42,9 +42,12 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, default=1, help="parts at a time (default 1)")
     p.add_argument("--timeout", type=float, default=600.0, help="seconds recon may take per part (default 600)")
     p.add_argument("--memory", type=int, default=4096, help="MiB of address space recon may take (default 4096)")
-    p.add_argument("--out", type=Path, required=True, help="folder for rows/, corpus.json, CORPUS.md, pictures")
+    p.add_argument("--out", type=Path, help="folder for rows/, corpus.json, CORPUS.md, pictures (required unless "
+                   "--generate-only)")
     p.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="folder of the generated parts and meshes")
     p.add_argument("--force", action="store_true", help="redo cases whose row exists")
+    p.add_argument("--generate-only", action="store_true",
+                   help="only make the parts and meshes into --cache (no recon); times in CACHE/generation.json")
     p.add_argument("--worst", type=int, default=5, help="worst cases pictured per regime (default 5)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -58,6 +61,11 @@ def main(argv=None) -> int:
         print("--jobs, --timeout and --count must be positive", file=sys.stderr)
         return 2
     regimes = args.regime or ["export"]
+    if args.generate_only:
+        return _generate_only(seeds, regimes, args)
+    if args.out is None:
+        print("--out is required (unless --generate-only)", file=sys.stderr)
+        return 2
     rows_dir = args.out / "rows"
     rows_dir.mkdir(parents=True, exist_ok=True)
     kw = {"cache": args.cache, "keep": args.out / "steps", "timeout": args.timeout, "memory_mb": args.memory}
@@ -82,6 +90,18 @@ def main(argv=None) -> int:
 
     write_report(args.out, cache=args.cache, worst=args.worst)
     return 0
+
+
+def _generate_only(seeds, regimes, args) -> int:
+    from .generate import generate, timing_summary
+
+    t0 = time.perf_counter()
+    rows = generate(seeds, regimes, cache=args.cache, jobs=args.jobs, memory_mb=args.memory)
+    log.info("generated %d cases in %.0f s", len(rows), time.perf_counter() - t0)
+    for regime, s in timing_summary(rows).items():
+        log.info("%s: %d cases, failed %s; (median, worst decile, max): %s", regime, s["n"], s["failed"] or "none",
+                 ", ".join(f"{k} {tuple(round(x, 2) for x in s[k])}" for k in s if k not in ("n", "failed")))
+    return 1 if any(r["status"] != "ok" for r in rows) else 0
 
 
 def _g(x):
