@@ -153,3 +153,20 @@ def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path):
     tol = json.loads(report.read_text())["tolerance"]
     md = model_deviation(out, truth.step, samples=5000)
     assert md.to_reference.p95 <= tol, (md.to_reference.p95, tol)
+
+
+def test_dense_sizing_lands_in_the_regime_range_whatever_the_remesher_made():
+    """The subdivisions are chosen on the count the remesher made (each multiplies it by exactly 4): inside the
+    range for any remeshed count up to its top, and the nearest in ratio to the target among those inside.
+    (fine seed 6 was remeshed to 462 triangles for a target of 282 and subdivided 5 times: 473,088 > 300k.)"""
+    for lo, hi in (regimes.FINE_RANGE, regimes.SCAN_RANGE):
+        for target in np.geomspace(lo, hi, 13).astype(int):
+            for n in np.unique(np.geomspace(1, hi, 400).astype(int)):
+                k = regimes.subdivisions(int(n), int(target), (lo, hi))
+                count = n * 4**k
+                inside = [n * 4**j for j in range(12) if lo <= n * 4**j <= hi]
+                assert lo <= count <= hi, (target, n, k)
+                assert abs(np.log(count / target)) == min(abs(np.log(c / target)) for c in inside)
+    assert regimes.subdivisions(462, 289_326, regimes.FINE_RANGE) == 4  # 118,272, not 473,088
+    with pytest.raises(ValueError):
+        regimes.subdivisions(100, 1000, (1000, 2000))  # no factor 4 between the bounds: a range not always reachable

@@ -46,6 +46,8 @@ def main(argv=None) -> int:
                    "--generate-only)")
     p.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="folder of the generated parts and meshes")
     p.add_argument("--force", action="store_true", help="redo cases whose row exists")
+    p.add_argument("--freecad", action="store_true",
+                   help="also time FreeCAD's mesh → shape → refine route on each mesh (added to rows run before)")
     p.add_argument("--generate-only", action="store_true",
                    help="only make the parts and meshes into --cache (no recon); times in CACHE/generation.json")
     p.add_argument("--worst", type=int, default=5, help="worst cases pictured per regime (default 5)")
@@ -68,9 +70,16 @@ def main(argv=None) -> int:
         return 2
     rows_dir = args.out / "rows"
     rows_dir.mkdir(parents=True, exist_ok=True)
-    kw = {"cache": args.cache, "keep": args.out / "steps", "timeout": args.timeout, "memory_mb": args.memory}
-    todo = [(s, r, kw) for r in regimes for s in seeds
-            if args.force or not (rows_dir / f"{r}_seed_{s:05d}.json").exists()]
+    kw = {"cache": args.cache, "keep": args.out / "steps", "timeout": args.timeout, "memory_mb": args.memory,
+          "freecad": args.freecad}
+    todo = []
+    for r in regimes:
+        for s in seeds:
+            path = rows_dir / f"{r}_seed_{s:05d}.json"
+            if args.force or not path.exists():
+                todo.append((s, r, kw))
+            elif args.freecad and "fc_status" not in (old := json.loads(path.read_text())):
+                todo.append((s, r, dict(kw, freecad_only=old)))  # recon's row kept, FreeCAD's route added
     log.info("%d cases to run (%d already done)", len(todo), len(seeds) * len(regimes) - len(todo))
     t0 = time.perf_counter()
     with cf.ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:

@@ -127,8 +127,27 @@ def _p95(values) -> float:
     return float(np.percentile(v, 95)) if v.size else float("nan")
 
 
+def run_freecad(mesh: Path, *, timeout: float) -> dict:
+    """FreeCAD's route on the same mesh (mesh → shape → refine → solid → STEP, :func:`recon._freecad.freecad_route`):
+    ``fc_seconds`` its stages inside freecadcmd, ``fc_wall_seconds`` with freecadcmd's start-up, faces, validity."""
+    from recon._freecad import freecad_route, freecadcmd
+
+    if freecadcmd() is None:
+        return {"fc_status": "absent"}
+    with tempfile.TemporaryDirectory(prefix="corpus_fc_") as tmp:
+        try:
+            res = freecad_route(mesh, Path(tmp) / "freecad.step", timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return {"fc_status": "timeout"}
+        except Exception as err:  # FreeCAD failing is its row, not the end of the run
+            return {"fc_status": "error", "fc_message": f"{type(err).__name__}: {err}"[:200]}
+    ok = bool(res.get("valid")) and str(res.get("type", "")).lower() == "solid"
+    return {"fc_status": "ok" if ok else "invalid", "fc_faces": res.get("faces"), "fc_valid": ok,
+            "fc_seconds": round(float(res["seconds"]), 3), "fc_wall_seconds": round(float(res["wall_seconds"]), 2)}
+
+
 def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path | None = None,
-             timeout: float = 600.0, memory_mb: int | None = 4096) -> dict:
+             timeout: float = 600.0, memory_mb: int | None = 4096, freecad: bool = False) -> dict:
     """The row of one (seed, regime): generation, recon, measurement; any failure is recorded, never raised."""
     row = {"seed": int(seed), "regime": regime}
     t0 = time.perf_counter()
@@ -162,6 +181,8 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
                 (keep / f"{regime}_seed_{seed:05d}.step").write_bytes(out.read_bytes())
     if row.get("ours_true_p95") is not None and row.get("tolerance_pct") is not None:
         row["issue20_ok"] = not (row["exit"] == 0 and row["ours_true_p95"] > row["tolerance_pct"])
+    if freecad:
+        row.update(run_freecad(truth.mesh, timeout=timeout))
     row["total_seconds"] = round(time.perf_counter() - t0, 2)
     return row
 
@@ -172,4 +193,10 @@ def run_job(job) -> dict:
 
     logging.getLogger("build123d").setLevel(logging.WARNING)  # a spawned worker has its own loggers
     seed, regime, kw = job
-    return run_case(seed, regime, **kw)
+    kw = dict(kw)
+    row = kw.pop("freecad_only", None)
+    if row is None:
+        return run_case(seed, regime, **kw)
+    row = dict(row)  # a row recon already has: only FreeCAD's route is added
+    row.update(run_freecad(materialise(seed, regime, kw["cache"]).mesh, timeout=kw["timeout"]))
+    return row

@@ -20,6 +20,14 @@ FIGURES = (
     ("floor_ratio", "mesh→ours / mesh→true p95", "low", ""),
     ("face_error", "|faces − true| / true", "low", ""),
     ("seconds", "recon convert s (wall)", "low", ""),
+    ("convert_seconds", "recon's stages without its deviation check, s", "low", ""),
+)
+#: FreeCAD's route on the same meshes (``--freecad``), beside recon's figures where the run has it
+FC_FIGURES = (
+    ("fc_seconds", "FreeCAD mesh → shape → refine → solid → STEP s (its stages)", "low", ""),
+    ("fc_wall_seconds", "FreeCAD route s (wall, freecadcmd start-up included)", "low", ""),
+    ("fc_faces", "FreeCAD faces", "low", ""),
+    ("fc_face_ratio", "FreeCAD faces / true faces", "low", ""),
 )
 
 #: the issues' targets per regime (issue 22 for export/fine, issue 23 for the scans), as written there
@@ -45,6 +53,10 @@ def load_rows(out: Path) -> list[dict]:
             r["floor_ratio"] = r["mesh_ours_p95"] / r["mesh_true_p95"]
         if r.get("faces_ours") is not None and r.get("faces_true"):
             r["face_error"] = abs(r["faces_ours"] - r["faces_true"]) / r["faces_true"]
+        if r.get("recon_seconds"):  # recon's own stages; the deviation check is its verdict, not the conversion
+            r["convert_seconds"] = sum(v for k, v in r["recon_seconds"].items() if k != "deviation")
+        if r.get("fc_faces") is not None and r.get("faces_true"):
+            r["fc_face_ratio"] = r["fc_faces"] / r["faces_true"]
     return sorted(rows, key=lambda r: (r["regime"], r["seed"]))
 
 
@@ -71,10 +83,15 @@ def summary(rows) -> dict:
             "exit 0 but not a valid solid": sum(1 for r in rs if r.get("exit") == 0 and r.get("valid") is not True),
             "triangles median": float(np.median([r.get("triangles", 0) for r in rs])),
         }
-        for key, _, better, _ in FIGURES:
-            v = _values(rs, key, better)
-            q = 10 if better == "high" else 90
-            s[key] = (float(np.median(v)), float(np.percentile(v, q, method="lower" if better == "high" else "higher")))
+        fc = [r for r in rs if r.get("fc_status")]  # the cases FreeCAD's route ran on (a timeout counts as ∞)
+        if fc:
+            s["FreeCAD valid solid"] = sum(1 for r in fc if r.get("fc_valid")) / len(fc)
+        for group, figures in ((rs, FIGURES), (fc, FC_FIGURES if fc else ())):
+            for key, _, better, _ in figures:
+                v = _values(group, key, better)
+                q = 10 if better == "high" else 90
+                s[key] = (float(np.median(v)),
+                          float(np.percentile(v, q, method="lower" if better == "high" else "higher")))
         out[regime] = s
     return out
 
@@ -107,9 +124,12 @@ def render(rows, summ, pictures, machine) -> str:
             lines.append(f"| {key} | {100 * s[key]:.0f} % | {t.get(key, '')} |")
         for key in ("exit 0 outside tolerance (issue 20)", "exit 0 but not a valid solid"):
             lines.append(f"| {key} | {s[key]} | 0 |")
-        for key, title, better, _ in FIGURES:
-            med, dec = s[key]
-            lines.append(f"| {title}: median / worst decile | {_fmt(med)} / {_fmt(dec)} | {t.get(key, '')} |")
+        if "FreeCAD valid solid" in s:
+            lines.append(f"| FreeCAD valid solid | {100 * s['FreeCAD valid solid']:.0f} % | |")
+        for key, title, better, _ in FIGURES + FC_FIGURES:
+            if key in s:
+                med, dec = s[key]
+                lines.append(f"| {title}: median / worst decile | {_fmt(med)} / {_fmt(dec)} | {t.get(key, '')} |")
         lines += ["", "Worst cases:", "", "| seed | family | true faces | triangles | status | exit | valid | faces | "
                   "types | ours→true p95 | s | message |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         worst = sorted([r for r in rows if r["regime"] == regime], key=badness)[:10]
