@@ -48,6 +48,8 @@ def main(argv=None) -> int:
     p.add_argument("--force", action="store_true", help="redo cases whose row exists")
     p.add_argument("--freecad", action="store_true",
                    help="also time FreeCAD's mesh → shape → refine route on each mesh (added to rows run before)")
+    p.add_argument("--no-recon", action="store_true",
+                   help="with --freecad: only FreeCAD's route (rows a later run without it completes with recon)")
     p.add_argument("--generate-only", action="store_true",
                    help="only make the parts and meshes into --cache (no recon); times in CACHE/generation.json")
     p.add_argument("--worst", type=int, default=5, help="worst cases pictured per regime (default 5)")
@@ -70,16 +72,21 @@ def main(argv=None) -> int:
         return 2
     rows_dir = args.out / "rows"
     rows_dir.mkdir(parents=True, exist_ok=True)
+    if args.no_recon and not args.freecad:
+        print("--no-recon runs only FreeCAD's route: give --freecad too", file=sys.stderr)
+        return 2
     kw = {"cache": args.cache, "keep": args.out / "steps", "timeout": args.timeout, "memory_mb": args.memory,
-          "freecad": args.freecad}
+          "freecad": args.freecad, "recon": not args.no_recon}
     todo = []
     for r in regimes:
         for s in seeds:
             path = rows_dir / f"{r}_seed_{s:05d}.json"
-            if args.force or not path.exists():
-                todo.append((s, r, kw))
-            elif args.freecad and "fc_status" not in (old := json.loads(path.read_text())):
-                todo.append((s, r, dict(kw, freecad_only=old)))  # recon's row kept, FreeCAD's route added
+            old = None if args.force or not path.exists() else json.loads(path.read_text())
+            need_recon = old is None or (not args.no_recon and old.get("status") == "no-recon")
+            need_fc = args.freecad and (old is None or "fc_status" not in old)
+            if need_recon or need_fc:
+                # an earlier row keeps what this run does not redo: recon's figures, or FreeCAD's
+                todo.append((s, r, dict(kw, recon=need_recon and not args.no_recon, freecad=need_fc, old=old)))
     log.info("%d cases to run (%d already done)", len(todo), len(seeds) * len(regimes) - len(todo))
     t0 = time.perf_counter()
     with cf.ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:

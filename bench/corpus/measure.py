@@ -148,8 +148,9 @@ def run_freecad(mesh: Path, *, timeout: float) -> dict:
 
 
 def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path | None = None,
-             timeout: float = 600.0, memory_mb: int | None = 4096, freecad: bool = False) -> dict:
-    """The row of one (seed, regime): generation, recon, measurement; any failure is recorded, never raised."""
+             timeout: float = 600.0, memory_mb: int | None = 4096, freecad: bool = False, recon: bool = True) -> dict:
+    """The row of one (seed, regime): generation, recon (unless ``recon`` is False: status ``no-recon``), measurement,
+    FreeCAD's route where ``freecad``; any failure is recorded, never raised."""
     row = {"seed": int(seed), "regime": regime}
     t0 = time.perf_counter()
     try:
@@ -161,13 +162,26 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
     meta = truth.meta
     row.update(family=meta["family"], traits=meta["traits"], faces_true=meta["faces"],
                triangles=truth.info["triangles"], mesh_watertight=truth.info["watertight"])
+    if recon:
+        row.update(_recon_row(truth, seed, regime, keep=keep, timeout=timeout, memory_mb=memory_mb))
+    else:
+        row["status"] = "no-recon"
+    if freecad:
+        row.update(run_freecad(truth.mesh, timeout=timeout))
+    row["total_seconds"] = round(time.perf_counter() - t0, 2)
+    return row
+
+
+def _recon_row(truth, seed: int, regime: str, *, keep: Path | None, timeout: float, memory_mb: int | None) -> dict:
+    """recon convert on the case's mesh and the figures of its STEP file."""
+    row = {}
     with tempfile.TemporaryDirectory(prefix="corpus_") as tmp:
         out, report = Path(tmp) / "ours.step", Path(tmp) / "report.json"
         row.update(run_recon(truth.mesh, out, report, timeout=timeout, memory_mb=memory_mb))
         if report.exists():
             try:
                 rep = json.loads(report.read_text())
-                row["tolerance_pct"] = 100 * rep["tolerance"] / meta["diagonal"]
+                row["tolerance_pct"] = 100 * rep["tolerance"] / truth.meta["diagonal"]
                 row["recon_seconds"] = {k: v for k, v in rep.get("seconds", {}).items()}
                 row["recon_says_valid"] = bool(rep["validity"]["ok"])
             except (ValueError, KeyError) as err:
@@ -182,22 +196,20 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
                 (keep / f"{regime}_seed_{seed:05d}.step").write_bytes(out.read_bytes())
     if row.get("ours_true_p95") is not None and row.get("tolerance_pct") is not None:
         row["issue20_ok"] = not (row["exit"] == 0 and row["ours_true_p95"] > row["tolerance_pct"])
-    if freecad:
-        row.update(run_freecad(truth.mesh, timeout=timeout))
-    row["total_seconds"] = round(time.perf_counter() - t0, 2)
     return row
 
 
 def run_job(job) -> dict:
-    """:func:`run_case` of a ``(seed, regime, keywords)`` job, for a process pool's worker."""
+    """:func:`run_case` of a ``(seed, regime, keywords)`` job, for a process pool's worker. ``keywords["old"]``: the
+    case's row from an earlier run, whose FreeCAD figures (or recon's) the new row keeps where it has none."""
     import logging
 
     logging.getLogger("build123d").setLevel(logging.WARNING)  # a spawned worker has its own loggers
     seed, regime, kw = job
     kw = dict(kw)
-    row = kw.pop("freecad_only", None)
-    if row is None:
-        return run_case(seed, regime, **kw)
-    row = dict(row)  # a row recon already has: only FreeCAD's route is added
-    row.update(run_freecad(materialise(seed, regime, kw["cache"]).mesh, timeout=kw["timeout"]))
-    return row
+    old = kw.pop("old", None) or {}
+    row = run_case(seed, regime, **kw)
+    fc = lambda r: {k: v for k, v in r.items() if k.startswith("fc_")}  # noqa: E731
+    if old and not kw.get("recon", True):
+        return {**old, **fc(row)}  # only FreeCAD's route was run: the earlier row with its figures added
+    return {**fc(old), **row}
