@@ -68,8 +68,9 @@ def generate(seeds, regimes, *, cache: Path, jobs: int = 1, memory_mb: int | Non
 
     At most ``jobs`` cases are in flight, so when a worker dies the case that killed it is among them: alone it is
     charged; with others they are all run again one at a time."""
-    todo = [(s, r, str(cache)) for r in regimes for s in seeds]
-    todo.reverse()  # popped from the end: seed order
+    # seed by seed (every regime of a seed, then the next): a run stopped early has whole seeds
+    todo = [(s, r, str(cache)) for s in seeds for r in regimes]
+    todo.reverse()  # popped from the end
     rows = []
     ctx = multiprocessing.get_context("spawn")
     while todo:
