@@ -170,3 +170,16 @@ def test_dense_sizing_lands_in_the_regime_range_whatever_the_remesher_made():
     assert regimes.subdivisions(462, 289_326, regimes.FINE_RANGE) == 4  # 118,272, not 473,088
     with pytest.raises(ValueError):
         regimes.subdivisions(100, 1000, (1000, 2000))  # no factor 4 between the bounds: a range not always reachable
+
+
+def test_generate_only_records_a_case_the_generator_cannot_make(tmp_path):
+    """--generate-only's job never raises: a mesh the generator cannot make is a row with its reason (here a regime
+    that does not exist, after the part itself was made and cached)."""
+    from bench.corpus.generate import generate_job
+
+    row = generate_job((11, "no-such-regime", str(tmp_path)))
+    assert row["status"] == "generator" and "no-such-regime" in row["message"], row
+    assert (tmp_path / "parts" / "seed_00011.step").exists()
+    ok = generate_job((11, "export", str(tmp_path)))
+    assert ok["status"] == "ok" and ok["watertight"], ok
+    assert len(np.load(tmp_path / "export" / "seed_00011.labels.npy")) == ok["triangles"]  # a true face per triangle
