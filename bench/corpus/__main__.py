@@ -98,9 +98,11 @@ def main(argv=None) -> int:
             except Exception as err:  # the worker process died (a crash outside recon's own subprocess)
                 row = {"seed": seed, "regime": regime, "status": "worker", "message": f"{type(err).__name__}: {err}"}
             (rows_dir / f"{regime}_seed_{seed:05d}.json").write_text(json.dumps(row, indent=1))
-            log.info("%s seed %d: %s, faces %s/%s, types %s, ours→true p95 %s %%, %s s", regime, seed,
+            log.info("%s seed %d: %s, faces %s/%s, types %s, ours→true p95 %s %%, %s s%s", regime, seed,
                      row.get("status"), row.get("faces_ours"), row.get("faces_true"),
-                     _g(row.get("type_agreement")), _g(row.get("ours_true_p95")), row.get("seconds"))
+                     _g(row.get("type_agreement")), _g(row.get("ours_true_p95")), row.get("seconds"),
+                     f"; FreeCAD {row['fc_status']}, {row.get('fc_faces')} faces, {row.get('fc_seconds')} s"
+                     if row.get("fc_status") else "")
     log.info("ran %d cases in %.0f s", len(todo), time.perf_counter() - t0)
     from .report import write_report
 
