@@ -44,6 +44,8 @@ REMESH_MAX = 1_000
 #: remeshes tried to hit the remesher's target, and the ratio to it that is close enough (a subdivision is 4×)
 REMESH_TRIES = 3
 REMESH_SLACK = 1.25
+#: the coarsest remesh tried, in the first edge length h₀ (see :func:`_dense`)
+REMESH_COARSEST = 2.0
 
 
 def make_fixtures():
@@ -113,7 +115,7 @@ def _dense(solid, target, bounds, *, size=None):
     want = target / 4**k0
     # with uneven sizes the same h gives more triangles: scale h by the area-weighted mean density
     density = 1.0 if size is None else float(sum(e["area"] / s**2 for e, s in zip(table, size)) / area)
-    h = mf.h_for(area * density, want)
+    h = h0 = mf.h_for(area * density, want)
     best = None
     for _ in range(REMESH_TRIES):
         remeshed = mf.scanlike_mesh(solid, table, h, size=size)
@@ -124,7 +126,11 @@ def _dense(solid, target, bounds, *, size=None):
             best = (miss, remeshed, k, h)
         if abs(math.log(n / want)) <= math.log(REMESH_SLACK):
             break
-        h *= math.sqrt(n / want)
+        # never coarser than 2 h₀ (a quarter of the triangles: one subdivision fewer does that exactly); coarser
+        # it can run away (scan20 seed 1, a 46-face blended part, at 2.3 h₀: out of 4 GiB after 20 min)
+        h, last = min(h * math.sqrt(n / want), REMESH_COARSEST * h0), h
+        if h == last:
+            break
     _, (v, t, lab, kind, owner, feature, fproj, eproj), k, h = best
     mesh = (v, t, lab, kind, owner, feature)
     for _ in range(k):
