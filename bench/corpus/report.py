@@ -143,9 +143,10 @@ def render(rows, summ, pictures, machine) -> str:
             if key in s:
                 med, dec = s[key]
                 lines.append(f"| {title}: median / worst decile | {_fmt(med)} / {_fmt(dec)} | {t.get(key, '')} |")
-        lines += ["", "Worst cases:", "", "| seed | family | true faces | triangles | status | exit | valid | faces | "
-                  "types | ours→true p95 | s | message |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         worst = sorted(_ran(rows, regime), key=badness)[:10]
+        if worst:
+            lines += ["", "Worst cases:", "", "| seed | family | true faces | triangles | status | exit | valid | "
+                      "faces | types | ours→true p95 | s | message |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in worst:
             lines.append("| " + " | ".join(_fmt(r.get(k)) for k in ("seed", "family", "faces_true", "triangles", "status",
                          "exit", "valid", "faces_ours", "type_agreement", "ours_true_p95", "seconds"))
