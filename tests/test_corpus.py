@@ -138,13 +138,19 @@ _REGRESSION = [
 ]
 
 
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    """One corpus cache for the module: a part or mesh made by one test is read by the next."""
+    return tmp_path_factory.mktemp("corpus_cache")
+
+
 @pytest.mark.parametrize("seed", _REGRESSION)
-def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path):
+def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path, cache):
     from bench.corpus.measure import run_recon
     from bench.corpus.truth import materialise
     from recon.deviation import model_deviation
 
-    truth = materialise(seed, "export", tmp_path / "cache")
+    truth = materialise(seed, "export", cache)
     out, report = tmp_path / "ours.step", tmp_path / "report.json"
     res = run_recon(truth.mesh, out, report, timeout=300, memory_mb=4096)
     assert res["status"] in ("ok", "exit1"), res
@@ -172,14 +178,15 @@ def test_dense_sizing_lands_in_the_regime_range_whatever_the_remesher_made():
         regimes.subdivisions(100, 1000, (1000, 2000))  # no factor 4 between the bounds: a range not always reachable
 
 
-def test_generate_only_records_a_case_the_generator_cannot_make(tmp_path):
+def test_generate_only_records_a_case_the_generator_cannot_make(cache):
     """--generate-only's job never raises: a mesh the generator cannot make is a row with its reason (here a regime
-    that does not exist, after the part itself was made and cached)."""
+    that does not exist, after the part itself was made and cached). Seed 11 shares the module's cache with the
+    regression runs above, so nothing is made twice."""
     from bench.corpus.generate import generate_job
 
-    row = generate_job((11, "no-such-regime", str(tmp_path)))
+    row = generate_job((11, "no-such-regime", str(cache)))
     assert row["status"] == "generator" and "no-such-regime" in row["message"], row
-    assert (tmp_path / "parts" / "seed_00011.step").exists()
-    ok = generate_job((11, "export", str(tmp_path)))
+    assert (cache / "parts" / "seed_00011.step").exists()
+    ok = generate_job((11, "export", str(cache)))
     assert ok["status"] == "ok" and ok["watertight"], ok
-    assert len(np.load(tmp_path / "export" / "seed_00011.labels.npy")) == ok["triangles"]  # a true face per triangle
+    assert len(np.load(cache / "export" / "seed_00011.labels.npy")) == ok["triangles"]  # a true face per triangle
