@@ -136,13 +136,19 @@ _REGRESSION = [
 ]
 
 
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    """One corpus cache for the module: a part or mesh made by one test is read by the next."""
+    return tmp_path_factory.mktemp("corpus_cache")
+
+
 @pytest.mark.parametrize("seed", _REGRESSION)
-def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path):
+def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path, cache):
     from bench.corpus.measure import run_recon
     from bench.corpus.truth import materialise
     from recon.deviation import model_deviation
 
-    truth = materialise(seed, "export", tmp_path / "cache")
+    truth = materialise(seed, "export", cache)
     out, report = tmp_path / "ours.step", tmp_path / "report.json"
     res = run_recon(truth.mesh, out, report, timeout=300, memory_mb=4096)
     assert res["status"] in ("ok", "exit1"), res
@@ -151,3 +157,34 @@ def test_recon_never_exits_0_outside_its_tolerance(seed, tmp_path):
     tol = json.loads(report.read_text())["tolerance"]
     md = model_deviation(out, truth.step, samples=5000)
     assert md.to_reference.p95 <= tol, (md.to_reference.p95, tol)
+
+
+def test_dense_sizing_lands_in_the_regime_range_whatever_the_remesher_made():
+    """The subdivisions are chosen on the count the remesher made (each multiplies it by exactly 4): inside the
+    range for any remeshed count up to its top, and the nearest in ratio to the target among those inside.
+    (fine seed 6 was remeshed to 462 triangles for a target of 282 and subdivided 5 times: 473,088 > 300k.)"""
+    for lo, hi in (regimes.FINE_RANGE, regimes.SCAN_RANGE):
+        for target in np.geomspace(lo, hi, 13).astype(int):
+            for n in np.unique(np.geomspace(1, hi, 400).astype(int)):
+                k = regimes.subdivisions(int(n), int(target), (lo, hi))
+                count = n * 4**k
+                inside = [n * 4**j for j in range(12) if lo <= n * 4**j <= hi]
+                assert lo <= count <= hi, (target, n, k)
+                assert abs(np.log(count / target)) == min(abs(np.log(c / target)) for c in inside)
+    assert regimes.subdivisions(462, 289_326, regimes.FINE_RANGE) == 4  # 118,272, not 473,088
+    with pytest.raises(ValueError):
+        regimes.subdivisions(100, 1000, (1000, 2000))  # no factor 4 between the bounds: a range not always reachable
+
+
+def test_generate_only_records_a_case_the_generator_cannot_make(cache):
+    """--generate-only's job never raises: a mesh the generator cannot make is a row with its reason (here a regime
+    that does not exist, after the part itself was made and cached). Seed 11 shares the module's cache with the
+    regression runs above, so nothing is made twice."""
+    from bench.corpus.generate import generate_job
+
+    row = generate_job((11, "no-such-regime", str(cache)))
+    assert row["status"] == "generator" and "no-such-regime" in row["message"], row
+    assert (cache / "parts" / "seed_00011.step").exists()
+    ok = generate_job((11, "export", str(cache)))
+    assert ok["status"] == "ok" and ok["watertight"], ok
+    assert len(np.load(cache / "export" / "seed_00011.labels.npy")) == ok["triangles"]  # a true face per triangle

@@ -42,9 +42,16 @@ def main(argv=None) -> int:
     p.add_argument("--jobs", type=int, default=1, help="parts at a time (default 1)")
     p.add_argument("--timeout", type=float, default=600.0, help="seconds recon may take per part (default 600)")
     p.add_argument("--memory", type=int, default=4096, help="MiB of address space recon may take (default 4096)")
-    p.add_argument("--out", type=Path, required=True, help="folder for rows/, corpus.json, CORPUS.md, pictures")
+    p.add_argument("--out", type=Path, help="folder for rows/, corpus.json, CORPUS.md, pictures (required unless "
+                   "--generate-only)")
     p.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="folder of the generated parts and meshes")
     p.add_argument("--force", action="store_true", help="redo cases whose row exists")
+    p.add_argument("--freecad", action="store_true",
+                   help="also time FreeCAD's mesh → shape → refine route on each mesh (added to rows run before)")
+    p.add_argument("--no-recon", action="store_true",
+                   help="with --freecad: only FreeCAD's route (rows a later run without it completes with recon)")
+    p.add_argument("--generate-only", action="store_true",
+                   help="only make the parts and meshes into --cache (no recon); times in CACHE/generation.json")
     p.add_argument("--worst", type=int, default=5, help="worst cases pictured per regime (default 5)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
@@ -58,11 +65,28 @@ def main(argv=None) -> int:
         print("--jobs, --timeout and --count must be positive", file=sys.stderr)
         return 2
     regimes = args.regime or ["export"]
+    if args.generate_only:
+        return _generate_only(seeds, regimes, args)
+    if args.out is None:
+        print("--out is required (unless --generate-only)", file=sys.stderr)
+        return 2
     rows_dir = args.out / "rows"
     rows_dir.mkdir(parents=True, exist_ok=True)
-    kw = {"cache": args.cache, "keep": args.out / "steps", "timeout": args.timeout, "memory_mb": args.memory}
-    todo = [(s, r, kw) for r in regimes for s in seeds
-            if args.force or not (rows_dir / f"{r}_seed_{s:05d}.json").exists()]
+    if args.no_recon and not args.freecad:
+        print("--no-recon runs only FreeCAD's route: give --freecad too", file=sys.stderr)
+        return 2
+    kw = {"cache": args.cache, "keep": args.out / "steps", "timeout": args.timeout, "memory_mb": args.memory,
+          "freecad": args.freecad, "recon": not args.no_recon}
+    todo = []
+    for r in regimes:
+        for s in seeds:
+            path = rows_dir / f"{r}_seed_{s:05d}.json"
+            old = None if args.force or not path.exists() else json.loads(path.read_text())
+            need_recon = old is None or (not args.no_recon and old.get("status") == "no-recon")
+            need_fc = args.freecad and (old is None or "fc_status" not in old)
+            if need_recon or need_fc:
+                # an earlier row keeps what this run does not redo: recon's figures, or FreeCAD's
+                todo.append((s, r, dict(kw, recon=need_recon and not args.no_recon, freecad=need_fc, old=old)))
     log.info("%d cases to run (%d already done)", len(todo), len(seeds) * len(regimes) - len(todo))
     t0 = time.perf_counter()
     with cf.ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
@@ -74,14 +98,28 @@ def main(argv=None) -> int:
             except Exception as err:  # the worker process died (a crash outside recon's own subprocess)
                 row = {"seed": seed, "regime": regime, "status": "worker", "message": f"{type(err).__name__}: {err}"}
             (rows_dir / f"{regime}_seed_{seed:05d}.json").write_text(json.dumps(row, indent=1))
-            log.info("%s seed %d: %s, faces %s/%s, types %s, ours→true p95 %s %%, %s s", regime, seed,
+            log.info("%s seed %d: %s, faces %s/%s, types %s, ours→true p95 %s %%, %s s%s", regime, seed,
                      row.get("status"), row.get("faces_ours"), row.get("faces_true"),
-                     _g(row.get("type_agreement")), _g(row.get("ours_true_p95")), row.get("seconds"))
+                     _g(row.get("type_agreement")), _g(row.get("ours_true_p95")), row.get("seconds"),
+                     f"; FreeCAD {row['fc_status']}, {row.get('fc_faces')} faces, {row.get('fc_seconds')} s"
+                     if row.get("fc_status") else "")
     log.info("ran %d cases in %.0f s", len(todo), time.perf_counter() - t0)
     from .report import write_report
 
     write_report(args.out, cache=args.cache, worst=args.worst)
     return 0
+
+
+def _generate_only(seeds, regimes, args) -> int:
+    from .generate import generate, timing_summary
+
+    t0 = time.perf_counter()
+    rows = generate(seeds, regimes, cache=args.cache, jobs=args.jobs, memory_mb=args.memory)
+    log.info("generated %d cases in %.0f s", len(rows), time.perf_counter() - t0)
+    for regime, s in timing_summary(rows).items():
+        log.info("%s: %d cases, failed %s; (median, worst decile, max): %s", regime, s["n"], s["failed"] or "none",
+                 ", ".join(f"{k} {tuple(round(x, 2) for x in s[k])}" for k in s if k not in ("n", "failed")))
+    return 1 if any(r["status"] != "ok" for r in rows) else 0
 
 
 def _g(x):

@@ -57,8 +57,9 @@ def run_recon(mesh: Path, out: Path, report: Path, *, timeout: float, memory_mb:
         return {"exit": None, "status": "timeout", "seconds": round(time.perf_counter() - t0, 2),
                 "message": f"no result in {timeout:g} s"}
     seconds = round(time.perf_counter() - t0, 2)
-    # the reason, not the closing "wrote OUT" line
+    # the reason: recon's verdict ("result: …") where it printed one, else the last line but "wrote OUT"
     lines = [x for x in proc.stderr.strip().splitlines() if x.strip() and not x.startswith("wrote ")]
+    lines = [x for x in lines if x.startswith("result: ")][:1] or lines
     status = {0: "ok", 1: "exit1", 2: "exit2"}.get(proc.returncode, "crash")
     return {"exit": proc.returncode, "status": status, "seconds": seconds, "message": lines[-1][:300] if lines else ""}
 
@@ -127,9 +128,29 @@ def _p95(values) -> float:
     return float(np.percentile(v, 95)) if v.size else float("nan")
 
 
+def run_freecad(mesh: Path, *, timeout: float) -> dict:
+    """FreeCAD's route on the same mesh (mesh → shape → refine → solid → STEP, :func:`recon._freecad.freecad_route`):
+    ``fc_seconds`` its stages inside freecadcmd, ``fc_wall_seconds`` with freecadcmd's start-up, faces, validity."""
+    from recon._freecad import freecad_route, freecadcmd
+
+    if freecadcmd() is None:
+        return {"fc_status": "absent"}
+    with tempfile.TemporaryDirectory(prefix="corpus_fc_") as tmp:
+        try:
+            res = freecad_route(mesh, Path(tmp) / "freecad.step", timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return {"fc_status": "timeout"}
+        except Exception as err:  # FreeCAD failing is its row, not the end of the run
+            return {"fc_status": "error", "fc_message": f"{type(err).__name__}: {err}"[:200]}
+    ok = bool(res.get("valid")) and str(res.get("type", "")).lower() == "solid"
+    return {"fc_status": "ok" if ok else "invalid", "fc_faces": res.get("faces"), "fc_valid": ok,
+            "fc_seconds": round(float(res["seconds"]), 3), "fc_wall_seconds": round(float(res["wall_seconds"]), 2)}
+
+
 def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path | None = None,
-             timeout: float = 600.0, memory_mb: int | None = 4096) -> dict:
-    """The row of one (seed, regime): generation, recon, measurement; any failure is recorded, never raised."""
+             timeout: float = 600.0, memory_mb: int | None = 4096, freecad: bool = False, recon: bool = True) -> dict:
+    """The row of one (seed, regime): generation, recon (unless ``recon`` is False: status ``no-recon``), measurement,
+    FreeCAD's route where ``freecad``; any failure is recorded, never raised."""
     row = {"seed": int(seed), "regime": regime}
     t0 = time.perf_counter()
     try:
@@ -141,13 +162,26 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
     meta = truth.meta
     row.update(family=meta["family"], traits=meta["traits"], faces_true=meta["faces"],
                triangles=truth.info["triangles"], mesh_watertight=truth.info["watertight"])
+    if recon:
+        row.update(_recon_row(truth, seed, regime, keep=keep, timeout=timeout, memory_mb=memory_mb))
+    else:
+        row["status"] = "no-recon"
+    if freecad:
+        row.update(run_freecad(truth.mesh, timeout=timeout))
+    row["total_seconds"] = round(time.perf_counter() - t0, 2)
+    return row
+
+
+def _recon_row(truth, seed: int, regime: str, *, keep: Path | None, timeout: float, memory_mb: int | None) -> dict:
+    """recon convert on the case's mesh and the figures of its STEP file."""
+    row = {}
     with tempfile.TemporaryDirectory(prefix="corpus_") as tmp:
         out, report = Path(tmp) / "ours.step", Path(tmp) / "report.json"
         row.update(run_recon(truth.mesh, out, report, timeout=timeout, memory_mb=memory_mb))
         if report.exists():
             try:
                 rep = json.loads(report.read_text())
-                row["tolerance_pct"] = 100 * rep["tolerance"] / meta["diagonal"]
+                row["tolerance_pct"] = 100 * rep["tolerance"] / truth.meta["diagonal"]
                 row["recon_seconds"] = {k: v for k, v in rep.get("seconds", {}).items()}
                 row["recon_says_valid"] = bool(rep["validity"]["ok"])
             except (ValueError, KeyError) as err:
@@ -162,14 +196,20 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
                 (keep / f"{regime}_seed_{seed:05d}.step").write_bytes(out.read_bytes())
     if row.get("ours_true_p95") is not None and row.get("tolerance_pct") is not None:
         row["issue20_ok"] = not (row["exit"] == 0 and row["ours_true_p95"] > row["tolerance_pct"])
-    row["total_seconds"] = round(time.perf_counter() - t0, 2)
     return row
 
 
 def run_job(job) -> dict:
-    """:func:`run_case` of a ``(seed, regime, keywords)`` job, for a process pool's worker."""
+    """:func:`run_case` of a ``(seed, regime, keywords)`` job, for a process pool's worker. ``keywords["old"]``: the
+    case's row from an earlier run, whose FreeCAD figures (or recon's) the new row keeps where it has none."""
     import logging
 
     logging.getLogger("build123d").setLevel(logging.WARNING)  # a spawned worker has its own loggers
     seed, regime, kw = job
-    return run_case(seed, regime, **kw)
+    kw = dict(kw)
+    old = kw.pop("old", None) or {}
+    row = run_case(seed, regime, **kw)
+    fc = lambda r: {k: v for k, v in r.items() if k.startswith("fc_")}  # noqa: E731
+    if old and not kw.get("recon", True):
+        return {**old, **fc(row)}  # only FreeCAD's route was run: the earlier row with its figures added
+    return {**fc(old), **row}

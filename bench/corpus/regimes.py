@@ -41,6 +41,11 @@ FINE_RANGE = (20_000, 300_000)
 SCAN_RANGE = (30_000, 300_000)
 #: the remesher (pure Python, ~0.05 s a triangle) works at most this many triangles; subdivision takes it to the target
 REMESH_MAX = 1_000
+#: remeshes tried to hit the remesher's target, and the ratio to it that is close enough (a subdivision is 4×)
+REMESH_TRIES = 3
+REMESH_SLACK = 1.25
+#: the coarsest remesh tried, in the first edge length h₀ (see :func:`_dense`)
+REMESH_COARSEST = 2.0
 
 
 def make_fixtures():
@@ -81,27 +86,63 @@ def _curved(table):
     return np.array([e["type"] != "plane" for e in table])
 
 
-def _dense(solid, target, *, size=None):
-    """A scan-like mesh of about ``target`` triangles: remeshed at ≤ REMESH_MAX triangles, then subdivided 1:4."""
+def subdivisions(remeshed: int, target: int, bounds: tuple[int, int]) -> int:
+    """How many 1:4 subdivisions take a remeshed mesh of ``remeshed`` triangles nearest ``target`` (in ratio) while
+    staying inside ``bounds``: each one multiplies the count by exactly 4, so the count is known before subdividing.
+
+    The remesher cannot always hit its own target (it never collapses a feature edge, so parts with many small faces
+    keep more triangles): the subdivisions are chosen on the count it made, not on the one asked for."""
+    lo, hi = bounds
+    if remeshed < 1 or hi < 4 * lo:
+        raise ValueError("bounds must span a factor 4 (one subdivision) and the mesh have a triangle")
+    # with hi ≥ 4 lo some k lands inside the bounds whenever remeshed ≤ hi; a coarser remesh is kept as it is
+    ks = [k for k in range(0, 16) if lo <= remeshed * 4**k <= hi] or [0]
+    return min(ks, key=lambda k: abs(math.log(remeshed * 4**k / target)))
+
+
+def _dense(solid, target, bounds, *, size=None):
+    """A scan-like mesh of about ``target`` triangles inside ``bounds``: remeshed at ≤ REMESH_MAX triangles, then
+    subdivided 1:4 (:func:`subdivisions`).
+
+    The remesher overshoots its own target where feature edges are short (it keeps every corner, and a small face
+    needs triangles of its own), and the subdivisions multiply that: its edge length is corrected from the count it
+    made (a count goes as 1/h²) at most REMESH_TRIES times, and the remesh whose final count is nearest the target
+    kept."""
     mf = make_fixtures()
     table = mf.face_table(solid)
     area = sum(e["area"] for e in table)
-    k = max(0, math.ceil(math.log(target / REMESH_MAX, 4)))
+    k0 = max(0, math.ceil(math.log(target / REMESH_MAX, 4)))
+    want = target / 4**k0
     # with uneven sizes the same h gives more triangles: scale h by the area-weighted mean density
     density = 1.0 if size is None else float(sum(e["area"] / s**2 for e, s in zip(table, size)) / area)
-    h = mf.h_for(area * density, target / 4**k)
-    v, t, lab, kind, owner, feature, fproj, eproj = mf.scanlike_mesh(solid, table, h, size=size)
+    h = h0 = mf.h_for(area * density, want)
+    best = None
+    for _ in range(REMESH_TRIES):
+        remeshed = mf.scanlike_mesh(solid, table, h, size=size)
+        n = len(remeshed[1])
+        k = subdivisions(n, target, bounds)
+        miss = abs(math.log(n * 4**k / target))
+        if best is None or miss < best[0]:
+            best = (miss, remeshed, k, h)
+        if abs(math.log(n / want)) <= math.log(REMESH_SLACK):
+            break
+        # never coarser than 2 h₀ (a quarter of the triangles: one subdivision fewer does that exactly); coarser
+        # it can run away (scan20 seed 1, a 46-face blended part, at 2.3 h₀: out of 4 GiB after 20 min)
+        h, last = min(h * math.sqrt(n / want), REMESH_COARSEST * h0), h
+        if h == last:
+            break
+    _, (v, t, lab, kind, owner, feature, fproj, eproj), k, h = best
     mesh = (v, t, lab, kind, owner, feature)
     for _ in range(k):
         mesh = mf.subdivide(*mesh, fproj, eproj)
-    return mesh[0], mesh[1], mesh[2], table, h / 2**k
+    return mesh[0], mesh[1], mesh[2], table, h / 2**k, len(t)
 
 
 def _fine(solid, seed):
     rng = regime_rng(seed, "fine")
     target = int(10 ** rng.uniform(*np.log10(FINE_RANGE)))
-    v, t, lab, _, h = _dense(solid, target)
-    return v, t, lab, {"target": target, "h": h}
+    v, t, lab, _, h, remeshed = _dense(solid, target, FINE_RANGE)
+    return v, t, lab, {"target": target, "h": h, "remeshed": remeshed}
 
 
 def _scan(solid, seed, regime):
@@ -110,9 +151,10 @@ def _scan(solid, seed, regime):
     target = int(10 ** rng.uniform(*np.log10(SCAN_RANGE)))
     ratio = float(rng.uniform(2, 3))  # curved faces sampled 2–3 times as densely (along an edge) as planes
     table = mf.face_table(solid)
-    v, t, lab, _, h = _dense(solid, target, size=np.where(_curved(table), 1.0 / ratio, 1.0))
+    v, t, lab, _, h, remeshed = _dense(solid, target, SCAN_RANGE, size=np.where(_curved(table), 1.0 / ratio, 1.0))
     diag = diagonal(v)
-    info = {"target": target, "curved_ratio": ratio, "h_plane": h, "sigma": SCAN_SIGMA[regime] * diag}
+    info = {"target": target, "curved_ratio": ratio, "h_plane": h, "remeshed": remeshed,
+            "sigma": SCAN_SIGMA[regime] * diag}
     v = mf.noisy(v, t, info["sigma"], rng)
     if regime.endswith("-holes"):
         keep = _hole_patches(v, t, rng, share=float(rng.uniform(0.01, 0.03)), count=int(rng.integers(2, 5)))

@@ -18,8 +18,16 @@ FIGURES = (
     ("ours_true_p95", "ours→true p95 % diag", "low", ""),
     ("true_ours_p95", "true→ours p95 % diag", "low", ""),
     ("floor_ratio", "mesh→ours / mesh→true p95", "low", ""),
-    ("face_error", "|faces − true| / true", "low", ""),
+    ("face_error", "face count error ∣ours − true∣ / true", "low", ""),
     ("seconds", "recon convert s (wall)", "low", ""),
+    ("convert_seconds", "recon's stages without its deviation check, s", "low", ""),
+)
+#: FreeCAD's route on the same meshes (``--freecad``), beside recon's figures where the run has it
+FC_FIGURES = (
+    ("fc_seconds", "FreeCAD mesh → shape → refine → solid → STEP s (its stages)", "low", ""),
+    ("fc_wall_seconds", "FreeCAD route s (wall, freecadcmd start-up included)", "low", ""),
+    ("fc_faces", "FreeCAD faces", "low", ""),
+    ("fc_face_ratio", "FreeCAD faces / true faces", "low", ""),
 )
 
 #: the issues' targets per regime (issue 22 for export/fine, issue 23 for the scans), as written there
@@ -45,6 +53,10 @@ def load_rows(out: Path) -> list[dict]:
             r["floor_ratio"] = r["mesh_ours_p95"] / r["mesh_true_p95"]
         if r.get("faces_ours") is not None and r.get("faces_true"):
             r["face_error"] = abs(r["faces_ours"] - r["faces_true"]) / r["faces_true"]
+        if r.get("recon_seconds"):  # recon's own stages; the deviation check is its verdict, not the conversion
+            r["convert_seconds"] = sum(v for k, v in r["recon_seconds"].items() if k != "deviation")
+        if r.get("fc_faces") is not None and r.get("faces_true"):
+            r["fc_face_ratio"] = r["fc_faces"] / r["faces_true"]
     return sorted(rows, key=lambda r: (r["regime"], r["seed"]))
 
 
@@ -57,26 +69,40 @@ def summary(rows) -> dict:
     """Per-regime shares and (median, worst decile) of every figure."""
     out = {}
     for regime in sorted({r["regime"] for r in rows}):
-        rs = [r for r in rows if r["regime"] == regime]
+        cases = [r for r in rows if r["regime"] == regime]
+        rs = [r for r in cases if r.get("status") != "no-recon"]  # recon's figures: the cases recon ran on
         n = len(rs)
         share = lambda f: sum(1 for r in rs if f(r)) / n  # noqa: E731
-        s = {
-            "n": n,
-            "valid": share(lambda r: r.get("valid") is True),
-            "exit0": share(lambda r: r.get("exit") == 0),
-            "exact faces": share(lambda r: r.get("face_error") == 0),
-            "faces ±10 %": share(lambda r: r.get("face_error") is not None and r["face_error"] <= 0.10),
-            "faces ±15 %": share(lambda r: r.get("face_error") is not None and r["face_error"] <= 0.15),
-            "exit 0 outside tolerance (issue 20)": sum(1 for r in rs if r.get("issue20_ok") is False),
-            "exit 0 but not a valid solid": sum(1 for r in rs if r.get("exit") == 0 and r.get("valid") is not True),
-            "triangles median": float(np.median([r.get("triangles", 0) for r in rs])),
-        }
-        for key, _, better, _ in FIGURES:
-            v = _values(rs, key, better)
-            q = 10 if better == "high" else 90
-            s[key] = (float(np.median(v)), float(np.percentile(v, q, method="lower" if better == "high" else "higher")))
+        s = {"n": n}
+        if rs:
+            s.update({
+                "valid": share(lambda r: r.get("valid") is True),
+                "exit0": share(lambda r: r.get("exit") == 0),
+                "exact faces": share(lambda r: r.get("face_error") == 0),
+                "faces ±10 %": share(lambda r: r.get("face_error") is not None and r["face_error"] <= 0.10),
+                "faces ±15 %": share(lambda r: r.get("face_error") is not None and r["face_error"] <= 0.15),
+                "exit 0 outside tolerance (issue 20)": sum(1 for r in rs if r.get("issue20_ok") is False),
+                "exit 0 but not a valid solid": sum(1 for r in rs if r.get("exit") == 0 and r.get("valid") is not True),
+                "triangles median": float(np.median([r.get("triangles", 0) for r in rs])),
+            })
+        fc = [r for r in cases if r.get("fc_status")]  # the cases FreeCAD's route ran on (a timeout counts as ∞)
+        if fc:
+            s["FreeCAD cases"] = len(fc)
+            s["FreeCAD triangles median"] = float(np.median([r.get("triangles", 0) for r in fc]))
+            s["FreeCAD valid solid"] = sum(1 for r in fc if r.get("fc_valid")) / len(fc)
+        for group, figures in ((rs, FIGURES if rs else ()), (fc, FC_FIGURES if fc else ())):
+            for key, _, better, _ in figures:
+                v = _values(group, key, better)
+                q = 10 if better == "high" else 90
+                s[key] = (float(np.median(v)),
+                          float(np.percentile(v, q, method="lower" if better == "high" else "higher")))
         out[regime] = s
     return out
+
+
+def _ran(rows, regime) -> list[dict]:
+    """The rows of ``regime`` recon ran on."""
+    return [r for r in rows if r["regime"] == regime and r.get("status") != "no-recon"]
 
 
 def badness(r) -> tuple:
@@ -101,18 +127,26 @@ def render(rows, summ, pictures, machine) -> str:
              "bench/corpus/README.md for what each figure means.", ""]
     for regime, s in summ.items():
         t = TARGETS.get(regime, {})
-        lines += [f"## {regime} ({s['n']} parts, median {s['triangles median']:.0f} triangles)", "",
-                  "| figure | measured | target |", "|---|---|---|"]
-        for key in ("valid", "exit0", "exact faces", "faces ±10 %", "faces ±15 %"):
-            lines.append(f"| {key} | {100 * s[key]:.0f} % | {t.get(key, '')} |")
-        for key in ("exit 0 outside tolerance (issue 20)", "exit 0 but not a valid solid"):
-            lines.append(f"| {key} | {s[key]} | 0 |")
-        for key, title, better, _ in FIGURES:
-            med, dec = s[key]
-            lines.append(f"| {title}: median / worst decile | {_fmt(med)} / {_fmt(dec)} | {t.get(key, '')} |")
-        lines += ["", "Worst cases:", "", "| seed | family | true faces | triangles | status | exit | valid | faces | "
-                  "types | ours→true p95 | s | message |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-        worst = sorted([r for r in rows if r["regime"] == regime], key=badness)[:10]
+        head = [f"recon on {s['n']} parts (median {s['triangles median']:.0f} triangles)"] if s["n"] else []
+        if "FreeCAD cases" in s:
+            head.append(f"FreeCAD's route on {s['FreeCAD cases']} (median {s['FreeCAD triangles median']:.0f} "
+                        "triangles)")
+        lines += [f"## {regime}: {', '.join(head)}", "", "| figure | measured | target |", "|---|---|---|"]
+        if s["n"]:
+            for key in ("valid", "exit0", "exact faces", "faces ±10 %", "faces ±15 %"):
+                lines.append(f"| {key} | {100 * s[key]:.0f} % | {t.get(key, '')} |")
+            for key in ("exit 0 outside tolerance (issue 20)", "exit 0 but not a valid solid"):
+                lines.append(f"| {key} | {s[key]} | 0 |")
+        if "FreeCAD valid solid" in s:
+            lines.append(f"| FreeCAD valid solid | {100 * s['FreeCAD valid solid']:.0f} % | |")
+        for key, title, better, _ in FIGURES + FC_FIGURES:
+            if key in s:
+                med, dec = s[key]
+                lines.append(f"| {title}: median / worst decile | {_fmt(med)} / {_fmt(dec)} | {t.get(key, '')} |")
+        worst = sorted(_ran(rows, regime), key=badness)[:10]
+        if worst:
+            lines += ["", "Worst cases:", "", "| seed | family | true faces | triangles | status | exit | valid | "
+                      "faces | types | ours→true p95 | s | message |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in worst:
             lines.append("| " + " | ".join(_fmt(r.get(k)) for k in ("seed", "family", "faces_true", "triangles", "status",
                          "exit", "valid", "faces_ours", "type_agreement", "ours_true_p95", "seconds"))
@@ -183,7 +217,7 @@ def write_report(out: Path, *, cache: Path, worst: int = 5) -> dict:
     pictures = {}
     for regime in summ:
         pics = []
-        for r in sorted([r for r in rows if r["regime"] == regime], key=badness)[:worst]:
+        for r in sorted(_ran(rows, regime), key=badness)[:worst]:
             png = out / "pictures" / f"{regime}_seed_{r['seed']:05d}.png"
             png.parent.mkdir(parents=True, exist_ok=True)
             ours = out / "steps" / f"{regime}_seed_{r['seed']:05d}.step"

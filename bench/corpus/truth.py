@@ -11,6 +11,7 @@ Layout of the cache folder (git-ignored; everything is regenerated from the seed
 from __future__ import annotations
 
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +48,7 @@ def true_part(seed: int, cache: Path = DEFAULT_CACHE):
     from recon._io import atomic_path, write_json
 
     folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     solid, meta = part(seed)
     with atomic_path(step) as tmp:
         export_step(solid, str(tmp))
@@ -54,6 +56,7 @@ def true_part(seed: int, cache: Path = DEFAULT_CACHE):
     # the STEP is the truth (meshes are made from it); what writing it changed is recorded
     meta["step_volume_error"] = float(back.volume / solid.volume - 1)
     meta["step_faces"] = len(back.faces())
+    meta["generate_seconds"] = round(time.perf_counter() - t0, 3)  # the part and its STEP round trip
     write_json(js, meta)
     return step, meta
 
@@ -81,6 +84,7 @@ def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
     if mesh.exists() and js.exists():
         return Truth(seed, regime, step, mesh, meta, json.loads(js.read_text()))
     folder.mkdir(parents=True, exist_ok=True)
+    t0 = time.perf_counter()
     solid = read_part(step)
     v, t, lab, info = tessellate_info(solid, regime, seed)
     info.update(triangles=int(len(t)), vertices=int(len(v)), watertight=is_watertight(t))
@@ -95,5 +99,6 @@ def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
     with atomic_path(mesh.with_suffix(".labels.npy")) as tmp:
         with open(tmp, "wb") as fh:
             np.save(fh, lab.astype(np.int32))
+    info["generate_seconds"] = round(time.perf_counter() - t0, 3)  # reading the STEP, meshing, writing the mesh
     write_json(js, info)
     return Truth(seed, regime, step, mesh, meta, info)
