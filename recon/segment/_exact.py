@@ -111,26 +111,41 @@ def plane_atoms(mesh: Mesh, eps: float) -> np.ndarray:
     return labels
 
 
-def exact_tessellation(mesh: Mesh, atoms: np.ndarray) -> bool:
-    """Whether the mesh is a CAD tessellation with exact vertices: its planes (the coplanar sets of 2 or more
-    triangles) cover some of it, and they are drawn by their boundaries — at most :data:`INNER_SHARE` of their
-    vertices inside them. A scan's noise leaves no coplanar pairs; a remesher's planes are mostly inside."""
-    F = mesh.faces
-    counts = np.bincount(atoms)
-    multi = counts[atoms] >= 2
-    if not multi.any():
+def coplanar_pairs(mesh: Mesh, eps: float) -> np.ndarray:
+    """(e,) bool over ``mesh.face_adjacency``: the two triangles lie in one plane (each one's far vertex within
+    ``eps`` of the other's plane)."""
+    V, F = mesh.vertices, mesh.faces
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    nrm, off = _tri_planes(V, F)
+    ok = np.ones(len(pairs), bool)
+    for x, y in ((0, 1), (1, 0)):
+        far = np.abs(np.einsum("ijk,ik->ij", V[F[pairs[:, y]]], nrm[pairs[:, x]]) - off[pairs[:, x], None])
+        ok &= far.max(axis=1) <= eps
+    return ok
+
+
+def exact_tessellation(mesh: Mesh, eps: float) -> bool:
+    """Whether the mesh is a CAD tessellation with exact vertices: some of its triangles lie in one plane with a
+    neighbour to round-off ``eps``, and its planes are drawn by their boundaries — at most :data:`INNER_SHARE` of
+    the vertices of coplanar triangles are inside a plane (every triangle pair around them coplanar). A scan's
+    noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    if len(pairs) == 0:
         return False
-    # a vertex is inside a plane when every triangle around it is in that plane
-    lab = np.where(multi, atoms, -1)
-    lo = np.full(len(mesh.vertices), np.iinfo(np.int64).max)
-    hi = np.full(len(mesh.vertices), -2)
-    for j in range(3):
-        np.minimum.at(lo, F[:, j], lab)
-        np.maximum.at(hi, F[:, j], lab)
-    on_plane = np.zeros(len(mesh.vertices), bool)
-    on_plane[np.unique(F[multi])] = True
-    inner = on_plane & (lo == hi) & (lo >= 0)
-    return bool(inner.sum() <= INNER_SHARE * on_plane.sum())
+    flat = coplanar_pairs(mesh, eps)
+    if not flat.any():
+        return False
+    # a vertex is inside a plane when every edge around it joins two coplanar triangles
+    edges = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
+    n = len(mesh.vertices)
+    crease = np.zeros(n, bool)
+    crease[edges[~flat].ravel()] = True
+    on = np.zeros(n, bool)
+    on[edges[flat].ravel()] = True
+    rim = np.asarray(mesh.edge_face_count) != 2  # an open mesh's rim is no plane's inside
+    crease[np.asarray(mesh.edges_unique)[rim].ravel()] = True
+    inner = on & ~crease
+    return bool(inner.sum() <= INNER_SHARE * on.sum())
 
 
 @dataclass
@@ -223,7 +238,7 @@ def _seed(at: _Atoms, s: int, free: np.ndarray, eps: float, sag: float, *, rings
 
     Tried from the largest set down: the atoms within two steps (inside a curved face they span three rings of
     vertices, which tell a cone or a torus from a sphere at once), within one, then ``s`` with one or two of its
-    neighbours (a fillet one strip or two wide) — the rings only when ``rings``, the small sets only when not."""
+    neighbours (a fillet two strips wide: two quads) — the rings only when ``rings``, the pairs only when not."""
     V, F = at.mesh.vertices, at.mesh.faces
 
     def small(a, b):
@@ -233,8 +248,10 @@ def _seed(at: _Atoms, s: int, free: np.ndarray, eps: float, sag: float, *, rings
     ring2 = sorted({s, *nb, *(x for n in nb for x in at.nbrs[n] if small(n, x))})
     if rings:
         combos = [ring2, sorted({s, *nb})]
+    elif len(at.tris[s]) == 2:  # a fillet two strips wide: a quad and its neighbouring quad
+        combos = [[s, n] for n in nb if len(at.tris[n]) == 2]
     else:
-        combos = [[s, n] for n in nb[:6]] + [[s, n1, n2] for i, n1 in enumerate(nb[:4]) for n2 in nb[i + 1:4]]
+        return None
     seen = set()
     for c in combos:
         if len(c) < 2 or tuple(c) in seen:
@@ -274,25 +291,39 @@ def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: floa
     return region, fit
 
 
-def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
+#: Seeds that may fail before the curved faces are given up (a free-form part: its small atoms are on no analytic
+#: surface): a few per true face a CAD part has (its true planes drawn as one or two triangles fail as seeds), and a
+#: share of the atoms.
+SEED_BUDGET = 64
+SEED_BUDGET_SHARE = 0.25
+
+
+def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]] | None:
     """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
-    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle)."""
+    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle). None when more
+    seeds fail than :data:`SEED_BUDGET` and :data:`SEED_BUDGET_SHARE` of the atoms allow."""
     k = len(at.tris)
     free = np.ones(k, bool)
     regions = []
     # inside a curved face first (every neighbour a small atom across no crease), where the rings tell the type
     inner = [sum(len(at.tris[n]) > 2 or not at.smooth(a, n) for n in at.nbrs[a]) for a in range(k)]
     order = sorted((a for a in range(k) if len(at.tris[a]) <= 2), key=lambda a: (inner[a], a))
+    failed = 0
     for rings in (True, False):
         for s in order:
             if not free[s]:
                 continue
             seeded = _seed(at, s, free, eps, sag, rings=rings)
             if seeded is None:
+                failed += 1
+                if failed > SEED_BUDGET + k * SEED_BUDGET_SHARE:
+                    log.info("exact: %d seeds failed of %d atoms: not analytic faces", failed, k)
+                    return None
                 continue
             region, fit = _grow(at, seeded[0], seeded[1], free, eps, sag)
             free[region] = False
             regions.append((region, fit))
+    log.info("exact: %d curved faces, %d seeds failed of %d atoms", len(regions), failed, k)
     return regions
 
 
@@ -327,11 +358,13 @@ def _crease_free(mesh: Mesh, cos_crease: float) -> np.ndarray:
 
 
 def free_form(at: _Atoms, taken: np.ndarray, tolerance: float) -> list[tuple[np.ndarray, SurfaceFit]]:
-    """B-spline faces through the vertices of the small atoms (1–2 triangles) no curved surface took, joined over
-    edges that are no crease: ``(triangles, fit)`` for each piece a B-spline holds within ``tolerance``."""
+    """B-spline faces through the vertices of the single triangles no plane or curved surface took, joined over
+    edges that are no crease: ``(triangles, fit)`` for each piece a B-spline holds within ``tolerance``. (Two
+    coplanar triangles are a plane's: a free-form face hardly ever has a flat pair, a CAD export draws a plane's
+    rectangle as two.)"""
     mesh = at.mesh
     V, F = mesh.vertices, mesh.faces
-    small = np.array([len(t) <= 2 for t in at.tris]) & ~taken
+    small = np.array([len(t) == 1 for t in at.tris]) & ~taken
     tri_small = small[at.labels]
     pairs = _crease_free(mesh, float(np.cos(CREASE_RAD)))
     pairs = pairs[tri_small[pairs[:, 0]] & tri_small[pairs[:, 1]]]
@@ -356,7 +389,43 @@ def free_form(at: _Atoms, taken: np.ndarray, tolerance: float) -> list[tuple[np.
     return out
 
 
-def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -> ExactFaces:
+#: A curved face of fewer atoms than this (a fillet one or two strips wide) is told from planes meeting at an angle
+#: only by its sag: it is kept when its chords lie no farther from it than the chords of the faces drawn with more.
+WEAK_ATOMS = 4
+#: ... with this margin: an exporter's chord tolerance bounds every face's sag, the faces measured reach it only
+#: where the chord criterion, not the angle criterion, placed their vertices.
+WEAK_SAG_MARGIN = 1.5
+
+
+def _sag_of(at: _Atoms, region: list, fit: SurfaceFit) -> float:
+    V, F = at.mesh.vertices, at.mesh.faces
+    tris = np.concatenate([at.tris[a] for a in region])
+    return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris)))))
+
+
+def _weak_dropped(at: _Atoms, regions: list, notes: list) -> list:
+    """The curved regions without those of fewer than :data:`WEAK_ATOMS` atoms whose sag exceeds the sag of the
+    well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none): planes meeting at a small
+    angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through their corners)."""
+    sags = [_sag_of(at, r, f) for r, f in regions]
+    strong = [s for (r, _), s in zip(regions, sags) if len(r) >= WEAK_ATOMS]
+    limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
+    kept = []
+    for (r, f), s in zip(regions, sags):
+        if len(r) < WEAK_ATOMS and s > limit:
+            notes.append(f"{len(r)} plane pieces a {f.type} holds to round-off kept as planes: its chords lie "
+                         f"{s:.3g} from it, the well-drawn curved faces' at most {limit / WEAK_SAG_MARGIN:.3g}")
+            continue
+        kept.append((r, f))
+    return kept
+
+
+#: A CAD part has few faces of one triangle (a triangular face, a corner of a chamfer); beyond this share of the faces
+#: they are pieces of a free-form face the exact path did not join.
+SINGLE_SHARE = 0.05
+
+
+def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -> ExactFaces | None:
     """The faces of a mesh with exact vertices and their surfaces (see the module's text).
 
     Parameters
@@ -366,6 +435,11 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         The run's tolerance (model units): what a free-form face's B-spline must hold its vertices within.
     atoms : (m,) int, optional
         :func:`plane_atoms` of the mesh, when already made.
+
+    Returns
+    -------
+    ExactFaces, or None when the mesh's faces are not found this way (free-form faces the seeds and B-splines did
+    not explain): the caller decomposes it instead.
     """
     V, F = mesh.vertices, mesh.faces
     eps = roundoff(V)
@@ -377,7 +451,10 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     labels = np.full(len(F), -1, dtype=np.int64)
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
-    for region, fit in grow_curved(at, eps, sag):
+    curved = grow_curved(at, eps, sag)
+    if curved is None:
+        return None
+    for region, fit in _weak_dropped(at, curved, notes):
         p = len(fits)
         fits[p] = _best_type(at, region, fit, eps, sag, f"face {p}", notes)
         labels[np.concatenate([at.tris[a] for a in region])] = p
@@ -393,4 +470,31 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         p = len(fits)
         fits[p] = fit_plane(V[np.unique(F[rest])], tolerance=tolerance)
         labels[rest] = p
+    single = int(np.sum(np.bincount(labels) == 1))
+    if single > SINGLE_SHARE * len(fits) + 2:
+        log.info("exact: %d of %d faces are single triangles: a free-form surface no B-spline took", single, len(fits))
+        return None
     return ExactFaces(labels, fits, notes)
+
+
+def as_decomposition(mesh: Mesh, labels: np.ndarray):
+    """A :class:`recon.decompose.Decomposition` whose parts are the exact faces, each a patch (the report and the
+    B-rep's face names read the decomposition; an exact mesh needs no skeleton: its faces are found directly)."""
+    from ..decompose._types import BoundaryCurves, Decomposition, Part, SurfaceSkeleton
+
+    k = int(labels.max()) + 1
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    nb: list = [set() for _ in range(k)]
+    for x, y in zip(a[a != b].tolist(), b[a != b].tolist()):
+        nb[x].add(y)
+        nb[y].add(x)
+    areas = np.bincount(labels, weights=mesh.face_areas, minlength=k)
+    counts = np.bincount(labels, minlength=k)
+    parts = tuple(Part(p, "patch", False, tuple(sorted(nb[p])), int(counts[p]), float(areas[p])) for p in range(k))
+    none3, none = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    curves = BoundaryCurves(none3, none, np.zeros(1, dtype=np.int64), np.zeros((0, 2), dtype=np.int64),
+                            np.zeros(0, bool))
+    skeleton = SurfaceSkeleton(none3, np.zeros((0, 2), dtype=np.int64), none)
+    return Decomposition(labels, parts, curves, skeleton, scale=float("nan"), omega_min=float("nan"),
+                         threshold=float("nan"), noise=0.0, critical=np.zeros(len(labels), bool))
