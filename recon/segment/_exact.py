@@ -43,6 +43,9 @@ FITTERS = {"plane": fit_plane, "sphere": fit_sphere, "cylinder": fit_cylinder, "
 #: a CAD export uses (0.8 rad), below the turn of a crease between faces (a right angle, a hexagon's 60°).
 CREASE_RAD = 1.0
 COS_CREASE = float(np.cos(CREASE_RAD))
+#: On a CAD tessellation every plane and every quad of a cylinder's strip is a coplanar pair of triangles, a share
+#: of a few tenths of the pairs; noise leaves coplanar pairs only by chance (a few in a thousand).
+FLAT_SHARE = 0.02
 #: A CAD tessellation draws a plane by its boundary: at most this share of its planes' vertices are inside them
 #: (a remesher or a scan puts most of a plane's vertices inside).
 INNER_SHARE = 0.02
@@ -125,15 +128,15 @@ def coplanar_pairs(mesh: Mesh, eps: float) -> np.ndarray:
 
 
 def exact_tessellation(mesh: Mesh, eps: float) -> bool:
-    """Whether the mesh is a CAD tessellation with exact vertices: some of its triangles lie in one plane with a
-    neighbour to round-off ``eps``, and its planes are drawn by their boundaries — at most :data:`INNER_SHARE` of
+    """Whether the mesh is a CAD tessellation with exact vertices: at least :data:`FLAT_SHARE` of its triangle pairs
+    lie in one plane to round-off ``eps``, and its planes are drawn by their boundaries — at most :data:`INNER_SHARE` of
     the vertices of coplanar triangles are inside a plane (every triangle pair around them coplanar). A scan's
     noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
     pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
     if len(pairs) == 0:
         return False
     flat = coplanar_pairs(mesh, eps)
-    if not flat.any():
+    if flat.mean() < FLAT_SHARE:
         return False
     # a vertex is inside a plane when every edge around it joins two coplanar triangles
     edges = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
