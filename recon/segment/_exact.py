@@ -225,8 +225,9 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
     for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
         if len(ids) <= params:
             continue
+        pick = np.linspace(0, len(ids) - 1, FIT_POINTS).astype(int) if len(ids) > FIT_POINTS else slice(None)
         try:
-            fit = FITTERS[kind](V[ids], nrm, tolerance=eps)
+            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=eps)
         except (FitError, np.linalg.LinAlgError, ValueError):
             continue
         if _fits_exactly(fit, V, F, ids, tris, eps, sag):
@@ -267,12 +268,20 @@ def _seed(at: _Atoms, s: int, free: np.ndarray, eps: float, sag: float, *, rings
     return None
 
 
+#: Refits of a growing face to a more complex type, at most: the seed's rings give the type at once nearly always (a
+#: sphere band's two circles become a cone or a torus with the next ring); past it only the face's surface is checked.
+UPGRADE_TRIES = 32
+#: The curved fitters see at most this many of a face's vertices (evenly chosen); every vertex is then checked.
+FIT_POINTS = 256
+
+
 def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: float, sag: float):
     """Grow ``region`` over free neighbouring atoms while a curved surface holds them all (refitted, possibly of a
     more complex type, when a neighbour is off the current one)."""
     V, F = at.mesh.vertices, at.mesh.faces
     inside = set(region)
     rejected: set = set()
+    tries = 0
     front = [n for a in region for n in at.nbrs[a]][::-1]
     while front:
         a = front.pop()
@@ -280,6 +289,10 @@ def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: floa
             continue
         ids_a, tris_a = at.verts[a], at.tris[a]
         if not _fits_exactly(fit, V, F, ids_a, tris_a, eps, sag):
+            if tries >= UPGRADE_TRIES:
+                rejected.add(a)
+                continue
+            tries += 1
             ids, tris = at.points(region + [a])
             # an exact surface of the same type would be the same surface: only a more complex one can hold both
             fits = _candidates(V, F, ids, tris, eps, sag, above=fit.type)
@@ -294,17 +307,17 @@ def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: floa
     return region, fit
 
 
-#: Seeds that may fail before the curved faces are given up (a free-form part: its small atoms are on no analytic
-#: surface): a few per true face a CAD part has (its true planes drawn as one or two triangles fail as seeds), and a
-#: share of the atoms.
+#: Seeds that may fail before the search for curved faces stops (a free-form face: its small atoms are on no analytic
+#: surface; what is left goes to the B-splines): a few per true face a CAD part has (its true planes drawn as one or
+#: two triangles fail as seeds), and a share of the atoms.
 SEED_BUDGET = 64
-SEED_BUDGET_SHARE = 0.25
+SEED_BUDGET_SHARE = 0.02
 
 
-def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]] | None:
+def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
     """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
-    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle). None when more
-    seeds fail than :data:`SEED_BUDGET` and :data:`SEED_BUDGET_SHARE` of the atoms allow."""
+    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle); it stops when more
+    seeds fail than :data:`SEED_BUDGET` and :data:`SEED_BUDGET_SHARE` of the atoms allow (the faces found so far)."""
     k = len(at.tris)
     free = np.ones(k, bool)
     regions = []
@@ -320,8 +333,8 @@ def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceF
             if seeded is None:
                 failed += 1
                 if failed > SEED_BUDGET + k * SEED_BUDGET_SHARE:
-                    log.info("exact: %d seeds failed of %d atoms: not analytic faces", failed, k)
-                    return None
+                    log.info("exact: %d seeds failed of %d atoms: the rest is free-form", failed, k)
+                    return regions
                 continue
             region, fit = _grow(at, seeded[0], seeded[1], free, eps, sag)
             free[region] = False
@@ -455,8 +468,6 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
     curved = grow_curved(at, eps, sag)
-    if curved is None:
-        return None
     for region, fit in _weak_dropped(at, curved, notes):
         p = len(fits)
         fits[p] = _best_type(at, region, fit, eps, sag, f"face {p}", notes)
