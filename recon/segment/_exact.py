@@ -250,8 +250,8 @@ def _seed(at: _Atoms, s: int, free: np.ndarray, eps: float, sag: float, *, rings
 
     nb = [n for n in at.nbrs[s] if small(s, n)]
     ring2 = sorted({s, *nb, *(x for n in nb for x in at.nbrs[n] if small(n, x))})
-    if rings:
-        combos = [ring2, sorted({s, *nb})]
+    if rings:  # the last: the strip's own quads, without the fan triangles of a corner at its end
+        combos = [ring2, sorted({s, *nb}), sorted({s, *(n for n in nb if len(at.tris[n]) == len(at.tris[s]))})]
     elif len(at.tris[s]) == 2:  # a fillet two strips wide: a quad and its neighbouring quad
         combos = [[s, n] for n in nb if len(at.tris[n]) == 2]
     else:
@@ -311,21 +311,22 @@ def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: floa
 #: surface; what is left goes to the B-splines): a few per true face a CAD part has (its true planes drawn as one or
 #: two triangles fail as seeds), and a share of the atoms.
 SEED_BUDGET = 64
-SEED_BUDGET_SHARE = 0.02
+SEED_BUDGET_SHARE = 0.1
 
 
 def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
     """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
-    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle); it stops when more
-    seeds fail than :data:`SEED_BUDGET` and :data:`SEED_BUDGET_SHARE` of the atoms allow (the faces found so far)."""
+    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle), first with their
+    rings, then in pairs of quads; each stage stops when more seeds fail than :data:`SEED_BUDGET` and
+    :data:`SEED_BUDGET_SHARE` of the atoms allow (what is left is free-form)."""
     k = len(at.tris)
     free = np.ones(k, bool)
     regions = []
     # inside a curved face first (every neighbour a small atom across no crease), where the rings tell the type
     inner = [sum(len(at.tris[n]) > 2 or not at.smooth(a, n) for n in at.nbrs[a]) for a in range(k)]
     order = sorted((a for a in range(k) if len(at.tris[a]) <= 2), key=lambda a: (inner[a], a))
-    failed = 0
     for rings in (True, False):
+        failed = 0
         for s in order:
             if not free[s]:
                 continue
@@ -334,12 +335,12 @@ def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceF
                 failed += 1
                 if failed > SEED_BUDGET + k * SEED_BUDGET_SHARE:
                     log.info("exact: %d seeds failed of %d atoms: the rest is free-form", failed, k)
-                    return regions
+                    break
                 continue
             region, fit = _grow(at, seeded[0], seeded[1], free, eps, sag)
             free[region] = False
             regions.append((region, fit))
-    log.info("exact: %d curved faces, %d seeds failed of %d atoms", len(regions), failed, k)
+    log.info("exact: %d curved faces of %d atoms", len(regions), k)
     return regions
 
 
