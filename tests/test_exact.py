@@ -132,4 +132,6 @@ def test_corpus_export_seeds_give_their_true_faces(seed, tmp_path):
     assert rep["n_faces"] == truth.meta["faces"]
     assert rep["faces_by_type"] == dict(Counter(truth.meta["face_types"]))
     assert rep["validity"]["ok"]
-    assert rep["validity"]["volume"] == pytest.approx(truth.meta["volume"], rel=1e-6)
+    # every face within round-off of the true one: the volumes differ by at most the area times the round-off
+    bound = truth.meta["area"] * roundoff(c.mesh.vertices)
+    assert abs(rep["validity"]["volume"] - truth.meta["volume"]) <= bound
