@@ -46,7 +46,8 @@ def test_cube_of_12_triangles_is_6_planes_of_volume_1000():
 
 
 def _write_obj(path, V, polys):
-    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in V] + ["f " + " ".join(str(i + 1) for i in p) for p in polys]
+    lines = [f"v {float(x)!r} {float(y)!r} {float(z)!r}" for x, y, z in V]
+    lines += ["f " + " ".join(str(i + 1) for i in p) for p in polys]
     path.write_text("\n".join(lines) + "\n")
 
 
