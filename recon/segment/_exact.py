@@ -130,8 +130,8 @@ def coplanar_pairs(mesh: Mesh, eps: float) -> np.ndarray:
 def exact_tessellation(mesh: Mesh, eps: float) -> bool:
     """Whether the mesh is a CAD tessellation with exact vertices: at least :data:`FLAT_SHARE` of its triangle pairs
     lie in one plane to round-off ``eps``, and its planes are drawn by their boundaries — at most
-    :data:`INNER_SHARE` of the vertices of coplanar triangles are inside a plane (every pair around them coplanar). A scan's
-    noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
+    :data:`INNER_SHARE` of the vertices of coplanar triangles are inside a plane (every pair around them coplanar).
+    A scan's noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
     pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
     if len(pairs) == 0:
         return False
