@@ -23,7 +23,8 @@ from ..fit import SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_p
 from ..mesh import Mesh
 from ._context import own_normals
 
-__all__ = ["ExactFaces", "exact_faces", "exact_tessellation", "roundoff", "plane_atoms", "grow_curved"]
+__all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
+           "roundoff"]
 
 log = logging.getLogger(__name__)
 
