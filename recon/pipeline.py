@@ -186,6 +186,11 @@ def convert(
     return Conversion(report, mesh, dec, labels, fits, brep)
 
 
+#: The exact-vertex path walks the mesh's plane pieces and seeds in Python (a few ms each): beyond this many triangles
+#: its attempt alone would take longer than the decomposition (crank, 100k triangles: 75k pieces, 9 min to list them).
+EXACT_MAX_TRIANGLES = 50_000
+
+
 def _exact(mesh: Mesh, tolerance: float | None):
     """The faces of ``mesh`` found from its exact vertices when it is a CAD export's
     (:func:`recon.segment._exact.exact_tessellation`, :func:`~recon.segment._exact.exact_faces`); None for any other
@@ -193,7 +198,7 @@ def _exact(mesh: Mesh, tolerance: float | None):
     from .segment._exact import exact_faces, exact_tessellation, plane_atoms, roundoff
 
     eps = roundoff(mesh.vertices)
-    if not exact_tessellation(mesh, eps):
+    if len(mesh.faces) > EXACT_MAX_TRIANGLES or not exact_tessellation(mesh, eps):
         return None
     with _one_blas_thread():
         return exact_faces(mesh, tolerance or tolerance_for(0.0, mesh.diagonal), plane_atoms(mesh, eps))
