@@ -187,7 +187,7 @@ def convert(
 
 
 #: The exact-vertex path walks the mesh's plane pieces and seeds in Python (a few ms each): beyond this many triangles
-#: its attempt alone would take longer than the decomposition (crank, 100k triangles: 75k pieces, 9 min to list them).
+#: its attempt alone would take longer than the decomposition (100k triangles of mostly curved faces: 75k pieces).
 EXACT_MAX_TRIANGLES = 50_000
 
 
