@@ -486,6 +486,13 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         p = len(fits)
         fits[p] = fit_plane(V[np.unique(F[rest])], tolerance=tolerance)
         labels[rest] = p
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    bounded = np.zeros(len(fits), bool)
+    cut = labels[pairs[:, 0]] != labels[pairs[:, 1]]
+    bounded[labels[pairs[cut].ravel()]] = True
+    if not bounded.all():  # a closed face (a whole torus): the decomposition cuts it on a seam, this path does not
+        log.info("exact: a face with no boundary")
+        return None
     single = int(np.sum(np.bincount(labels) == 1))
     if single > SINGLE_SHARE * len(fits) + 2:
         log.info("exact: %d of %d faces are single triangles: a free-form surface no B-spline took", single, len(fits))
