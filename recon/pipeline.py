@@ -133,21 +133,30 @@ def convert(
     times["load"] = time.perf_counter() - t
     step("load", 1.0)
 
+    if tolerance is not None and not tolerance > 0:
+        raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")
     t = time.perf_counter()
     step("decompose", 0.0)
-    dec = decompose(mesh, scale=scale, jobs=jobs)
+    found = _exact(mesh, tolerance) if scale is None else None
+    dec = decompose(mesh, scale=scale, jobs=jobs) if found is None else None
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
     if tolerance is None:
-        tolerance = getattr(dec, "tolerance", None) or tolerance_for(dec.noise, mesh.diagonal)
+        tolerance = tolerance_for(0.0, mesh.diagonal) if dec is None else (
+            getattr(dec, "tolerance", None) or tolerance_for(dec.noise, mesh.diagonal))
         log.info("tolerance %.4g", tolerance)
-    elif not tolerance > 0:
-        raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")
 
     t = time.perf_counter()
     step("fit", 0.0)
-    labels, fits = _faces_and_fits(mesh, dec, tolerance)
+    exact_notes = None
+    if found is not None:
+        from .segment._exact import as_decomposition
+
+        labels, fits, exact_notes = found.labels, found.fits, found.notes
+        dec = as_decomposition(mesh, labels)
+    else:
+        labels, fits = _faces_and_fits(mesh, dec, tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)
 
@@ -179,7 +188,27 @@ def convert(
         step("deviation", 1.0)
 
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error)
+    if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
+        report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
     return Conversion(report, mesh, dec, labels, fits, brep)
+
+
+#: The exact-vertex path walks the mesh's plane pieces and seeds in Python (a few ms each): beyond this many triangles
+#: its attempt alone would take longer than the decomposition (100k triangles of mostly curved faces: 75k pieces).
+EXACT_MAX_TRIANGLES = 50_000
+
+
+def _exact(mesh: Mesh, tolerance: float | None):
+    """The faces of ``mesh`` found from its exact vertices when it is a CAD export's
+    (:func:`recon.segment._exact.exact_tessellation`, :func:`~recon.segment._exact.exact_faces`); None for any other
+    mesh, or when they do not explain it (it is decomposed)."""
+    from .segment._exact import exact_faces, exact_tessellation, plane_atoms, roundoff
+
+    eps = roundoff(mesh.vertices)
+    if len(mesh.faces) > EXACT_MAX_TRIANGLES or not exact_tessellation(mesh, eps):
+        return None
+    with _one_blas_thread():
+        return exact_faces(mesh, tolerance or tolerance_for(0.0, mesh.diagonal), plane_atoms(mesh, eps))
 
 
 def _one_blas_thread():

@@ -1,0 +1,523 @@
+"""Faces of a mesh whose vertices are exact (a CAD program's STL export): every vertex lies on its true surface to
+round-off, so a face is a set of triangles one surface holds to round-off, however thin the triangles.
+
+- planes are the maximal coplanar, edge-connected triangle sets, decided by the vertices (:func:`plane_atoms`);
+- a cylinder, cone, sphere or torus is grown over those sets while a surface fitted to all their vertices holds
+  every vertex to round-off and passes within the chord sag of every triangle (:func:`grow_curved`);
+- what neither explains (free-form faces) is joined into B-spline faces through the vertices (:func:`free_form`).
+
+:func:`exact_faces` chains them; :func:`exact_tessellation` tells from the mesh whether this path applies.
+numpy/scipy only.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import FitError
+from ..fit import SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
+from ..mesh import Mesh
+from ._context import own_normals
+
+__all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
+           "roundoff"]
+
+log = logging.getLogger(__name__)
+
+#: Round-off of an exported vertex, in units of the largest coordinate: float32 keeps 2⁻²⁴ ≈ 6e-8 of it, and the
+#: vertices on a CAD kernel's edges sit within its edge tolerance (measured up to 6e-7 of it on OCC exports);
+#: 2e-6 leaves a margin of 3 over both and stays 20× under the 4e-5 a B-spline face misses any analytic one by.
+ROUNDOFF = 2e-6
+#: A curved face's triangles are chords of it: none may lie farther from it than a CAD export's chord tolerance,
+#: which is at most 1 % of the part's diagonal in any export setting; a surface farther from some triangle is a
+#: coincidence of a few vertices (a cube's 8 corners lie on a sphere, 3 parallel edges on a cylinder).
+SAG_SHARE = 0.01
+#: The curved types by number of parameters (the simplest that fits is preferred); a fit is proven by at least
+#: one vertex more than it has parameters.
+CURVED = (("sphere", 4), ("cylinder", 5), ("cone", 6), ("torus", 7))
+FITTERS = {"plane": fit_plane, "sphere": fit_sphere, "cylinder": fit_cylinder, "cone": fit_cone, "torus": fit_torus}
+#: Triangles of one curved face turn by less than this between neighbours: above the coarsest angular deflection
+#: a CAD export uses (0.8 rad), below the turn of a crease between faces (a right angle, a hexagon's 60°).
+CREASE_RAD = 1.0
+COS_CREASE = float(np.cos(CREASE_RAD))
+#: On a CAD tessellation every plane and every quad of a cylinder's strip is a coplanar pair of triangles, a share
+#: of a few tenths of the pairs; noise leaves coplanar pairs only by chance (a few in a thousand).
+FLAT_SHARE = 0.02
+#: A CAD tessellation draws a plane by its boundary: at most this share of its planes' vertices are inside them
+#: (a remesher or a scan puts most of a plane's vertices inside).
+INNER_SHARE = 0.02
+
+
+@dataclass
+class ExactFaces:
+    """The faces of an exact mesh: a label per triangle, a surface per label, and the notes for the report."""
+
+    labels: np.ndarray
+    fits: dict
+    notes: list = field(default_factory=list)
+
+
+def roundoff(vertices: np.ndarray) -> float:
+    """The distance within which an exported vertex lies on its surface (:data:`ROUNDOFF` of the largest
+    coordinate or the diagonal, whichever is larger)."""
+    diag = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+    return ROUNDOFF * max(float(np.abs(vertices).max()), diag)
+
+
+def _tri_planes(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return n, np.einsum("ij,ij->i", n, V[F[:, 0]])
+
+
+def _plane_of(P: np.ndarray) -> tuple[np.ndarray, float]:
+    c = P.mean(axis=0)
+    _, _, vt = np.linalg.svd(P - c, full_matrices=False)
+    return vt[-1], float(vt[-1] @ c)
+
+
+def plane_atoms(mesh: Mesh, eps: float) -> np.ndarray:
+    """(m,) int: the maximal edge-connected sets of triangles whose vertices lie within ``eps`` of one plane.
+
+    Grown from the largest triangle not yet taken (the best-conditioned plane), a neighbour joining when its
+    vertices are within ``eps`` of the set's plane, refitted to all its vertices as it doubles (a sliver's own
+    plane tilts; the set's does not)."""
+    V, F = mesh.vertices, mesh.faces
+    m = len(F)
+    nrm, off = _tri_planes(V, F)
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    adj = sp.coo_matrix((np.ones(2 * len(pairs)), (np.r_[pairs[:, 0], pairs[:, 1]], np.r_[pairs[:, 1], pairs[:, 0]])),
+                        shape=(m, m)).tocsr()
+    labels = np.full(m, -1, dtype=np.int64)
+    order = np.argsort(-mesh.face_areas, kind="stable")
+    k = 0
+    for s in order:
+        if labels[s] >= 0:
+            continue
+        n, d = nrm[s], off[s]
+        members, front, refit_at = [s], [s], 4
+        labels[s] = k
+        while front:
+            cand = np.unique(np.concatenate([adj.indices[adj.indptr[t]:adj.indptr[t + 1]] for t in front]))
+            cand = cand[labels[cand] < 0]
+            ok = cand[np.abs(V[F[cand]] @ n - d).max(axis=1) <= eps] if len(cand) else cand
+            labels[ok] = k
+            members.extend(ok.tolist())
+            front = ok.tolist()
+            if len(members) >= refit_at:
+                n, d = _plane_of(V[np.unique(F[members])])
+                refit_at *= 2
+        k += 1
+    return labels
+
+
+def coplanar_pairs(mesh: Mesh, eps: float) -> np.ndarray:
+    """(e,) bool over ``mesh.face_adjacency``: the two triangles lie in one plane (each one's far vertex within
+    ``eps`` of the other's plane)."""
+    V, F = mesh.vertices, mesh.faces
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    nrm, off = _tri_planes(V, F)
+    ok = np.ones(len(pairs), bool)
+    for x, y in ((0, 1), (1, 0)):
+        far = np.abs(np.einsum("ijk,ik->ij", V[F[pairs[:, y]]], nrm[pairs[:, x]]) - off[pairs[:, x], None])
+        ok &= far.max(axis=1) <= eps
+    return ok
+
+
+def exact_tessellation(mesh: Mesh, eps: float) -> bool:
+    """Whether the mesh is a CAD tessellation with exact vertices: at least :data:`FLAT_SHARE` of its triangle pairs
+    lie in one plane to round-off ``eps``, and its planes are drawn by their boundaries — at most
+    :data:`INNER_SHARE` of the vertices of coplanar triangles are inside a plane (every pair around them coplanar).
+    A scan's noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    if len(pairs) == 0:
+        return False
+    flat = coplanar_pairs(mesh, eps)
+    if flat.mean() < FLAT_SHARE:
+        return False
+    # a vertex is inside a plane when every edge around it joins two coplanar triangles
+    edges = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
+    n = len(mesh.vertices)
+    crease = np.zeros(n, bool)
+    crease[edges[~flat].ravel()] = True
+    on = np.zeros(n, bool)
+    on[edges[flat].ravel()] = True
+    rim = np.asarray(mesh.edge_face_count) != 2  # an open mesh's rim is no plane's inside
+    crease[np.asarray(mesh.edges_unique)[rim].ravel()] = True
+    inner = on & ~crease
+    return bool(inner.sum() <= INNER_SHARE * on.sum())
+
+
+@dataclass
+class _Atoms:
+    """The plane atoms as sets: triangles and vertices of each, and which atoms share an edge."""
+
+    mesh: Mesh
+    labels: np.ndarray
+    tris: list
+    verts: list
+    nbrs: list
+    turn: dict
+
+    def smooth(self, a: int, b: int) -> bool:
+        """Whether atoms ``a`` and ``b`` meet at no crease (:data:`CREASE_RAD`)."""
+        k = len(self.tris)
+        return self.turn.get(min(a, b) * k + max(a, b), -1.0) >= COS_CREASE
+
+    @classmethod
+    def of(cls, mesh: Mesh, labels: np.ndarray) -> "_Atoms":
+        k = int(labels.max()) + 1
+        order = np.argsort(labels, kind="stable")
+        bounds = np.searchsorted(labels[order], np.arange(k + 1))
+        tris = [order[bounds[i]:bounds[i + 1]] for i in range(k)]
+        verts = [np.unique(mesh.faces[t]) for t in tris]
+        pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+        a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+        cross = a != b
+        ab = np.unique(np.sort(np.c_[a[cross], b[cross]], axis=1), axis=0)
+        nbrs: list = [[] for _ in range(k)]
+        for x, y in ab.tolist():
+            nbrs[x].append(y)
+            nbrs[y].append(x)
+        # the sharpest turn of the normals across the edges two atoms share
+        fn = mesh.face_normals
+        cos = np.einsum("ij,ij->i", fn[pairs[cross, 0]], fn[pairs[cross, 1]])
+        key = np.minimum(a[cross], b[cross]) * k + np.maximum(a[cross], b[cross])
+        order2 = np.lexsort((cos, key))
+        first = np.r_[True, key[order2][1:] != key[order2][:-1]]
+        turn = dict(zip(key[order2][first].tolist(), cos[order2][first].tolist()))
+        return cls(mesh, labels, tris, verts, nbrs, turn)
+
+    def points(self, atoms) -> tuple[np.ndarray, np.ndarray]:
+        """(vertex ids, triangles) of a set of atoms."""
+        tris = np.concatenate([self.tris[a] for a in atoms])
+        return np.unique(np.concatenate([self.verts[a] for a in atoms])), tris
+
+
+def _chord_points(V: np.ndarray, F: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """The centroids and edge midpoints of triangles: where a chord lies farthest from the surface it spans."""
+    P = V[F[tris]]
+    return np.concatenate([P.mean(axis=1), (P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
+
+
+def _fits_exactly(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: float,
+                  sag: float) -> bool:
+    """Whether ``fit`` holds the vertices ``ids`` within ``eps`` and passes within ``sag`` of the triangles."""
+    if not fit.ok or fit.type == "bspline":
+        return False
+    if float(np.max(np.abs(fit.distance(V[ids])))) > eps:
+        return False
+    return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris))))) <= sag
+
+
+def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: float, sag: float, *,
+                first: bool = True, above: str | None = None) -> list[SurfaceFit]:
+    """The curved surfaces that hold the vertices ``ids`` to round-off and the triangles within the sag, simplest
+    first (only the first when ``first``; only types more complex than ``above``); a type needs one vertex more than
+    its parameters."""
+    ids_local = np.searchsorted(ids, F[tris])
+    nrm = own_normals(V, F[tris], ids_local, len(ids))
+    out = []
+    kinds = [k for k, _ in CURVED]
+    for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
+        if len(ids) <= params:
+            continue
+        pick = np.linspace(0, len(ids) - 1, FIT_POINTS).astype(int) if len(ids) > FIT_POINTS else slice(None)
+        try:
+            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=eps)
+        except (FitError, np.linalg.LinAlgError, ValueError):
+            continue
+        if _fits_exactly(fit, V, F, ids, tris, eps, sag):
+            out.append(fit)
+            if first:
+                break
+    return out
+
+
+def _seed(at: _Atoms, s: int, free: np.ndarray, eps: float, sag: float, *, rings: bool):
+    """A curved surface through atom ``s`` and some of its free small neighbours: ``(atoms, fit)`` or None.
+
+    Tried from the largest set down: the atoms within two steps (inside a curved face they span three rings of
+    vertices, which tell a cone or a torus from a sphere at once), within one, then ``s`` with one or two of its
+    neighbours (a fillet two strips wide: two quads) — the rings only when ``rings``, the pairs only when not."""
+    V, F = at.mesh.vertices, at.mesh.faces
+
+    def small(a, b):
+        return free[b] and len(at.tris[b]) <= 2 and at.smooth(a, b)
+
+    nb = [n for n in at.nbrs[s] if small(s, n)]
+    ring2 = sorted({s, *nb, *(x for n in nb for x in at.nbrs[n] if small(n, x))})
+    if rings:  # the last: the strip's own quads, without the fan triangles of a corner at its end
+        combos = [ring2, sorted({s, *nb}), sorted({s, *(n for n in nb if len(at.tris[n]) == len(at.tris[s]))})]
+    elif len(at.tris[s]) == 2:  # a fillet two strips wide: a quad and its neighbouring quad
+        combos = [[s, n] for n in nb if len(at.tris[n]) == 2]
+    else:
+        return None
+    seen = set()
+    for c in combos:
+        if len(c) < 2 or tuple(c) in seen:
+            continue
+        seen.add(tuple(c))
+        ids, tris = at.points(c)
+        fits = _candidates(V, F, ids, tris, eps, sag)
+        if fits:
+            return list(c), fits[0]
+    return None
+
+
+#: Refits of a growing face to a more complex type, at most: the seed's rings give the type at once nearly always (a
+#: sphere band's two circles become a cone or a torus with the next ring); past it only the face's surface is checked.
+UPGRADE_TRIES = 32
+#: The curved fitters see at most this many of a face's vertices (evenly chosen); every vertex is then checked.
+FIT_POINTS = 256
+
+
+def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: float, sag: float):
+    """Grow ``region`` over free neighbouring atoms while a curved surface holds them all (refitted, possibly of a
+    more complex type, when a neighbour is off the current one)."""
+    V, F = at.mesh.vertices, at.mesh.faces
+    inside = set(region)
+    rejected: set = set()
+    tries = 0
+    front = [n for a in region for n in at.nbrs[a]][::-1]
+    while front:
+        a = front.pop()
+        if a in inside or a in rejected or not free[a] or not all(at.smooth(a, b) for b in at.nbrs[a] if b in inside):
+            continue
+        ids_a, tris_a = at.verts[a], at.tris[a]
+        if not _fits_exactly(fit, V, F, ids_a, tris_a, eps, sag):
+            if tries >= UPGRADE_TRIES:
+                rejected.add(a)
+                continue
+            tries += 1
+            ids, tris = at.points(region + [a])
+            # an exact surface of the same type would be the same surface: only a more complex one can hold both
+            fits = _candidates(V, F, ids, tris, eps, sag, above=fit.type)
+            if not fits:
+                rejected.add(a)
+                continue
+            fit = fits[0]
+            rejected.clear()  # a new surface may hold what the last one did not
+        region.append(a)
+        inside.add(a)
+        front.extend(n for n in at.nbrs[a] if n not in inside)
+    return region, fit
+
+
+#: Seeds that may fail before the search for curved faces stops (a free-form face: its small atoms are on no analytic
+#: surface; what is left goes to the B-splines): a few per true face a CAD part has (its true planes drawn as one or
+#: two triangles fail as seeds), and a share of the atoms.
+SEED_BUDGET = 64
+SEED_BUDGET_SHARE = 0.1
+
+
+def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
+    """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
+    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle), first with their
+    rings, then in pairs of quads; each stage stops when more seeds fail than :data:`SEED_BUDGET` and
+    :data:`SEED_BUDGET_SHARE` of the atoms allow (what is left is free-form)."""
+    k = len(at.tris)
+    free = np.ones(k, bool)
+    regions = []
+    # inside a curved face first (every neighbour a small atom across no crease), where the rings tell the type
+    inner = [sum(len(at.tris[n]) > 2 or not at.smooth(a, n) for n in at.nbrs[a]) for a in range(k)]
+    order = sorted((a for a in range(k) if len(at.tris[a]) <= 2), key=lambda a: (inner[a], a))
+    for rings in (True, False):
+        failed = 0
+        for s in order:
+            if not free[s]:
+                continue
+            seeded = _seed(at, s, free, eps, sag, rings=rings)
+            if seeded is None:
+                failed += 1
+                if failed > SEED_BUDGET + k * SEED_BUDGET_SHARE:
+                    log.info("exact: %d seeds failed of %d atoms: the rest is free-form", failed, k)
+                    break
+                continue
+            region, fit = _grow(at, seeded[0], seeded[1], free, eps, sag)
+            free[region] = False
+            regions.append((region, fit))
+    log.info("exact: %d curved faces of %d atoms", len(regions), k)
+    return regions
+
+
+def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> int:
+    """How many of the triangles' edge midpoints lie on ``fit`` to round-off: a straight edge on the surface (a
+    cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not."""
+    P = V[F[tris]]
+    mids = np.concatenate([(P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
+    return int((np.abs(fit.distance(mids)) <= eps).sum())
+
+
+def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: float, sag: float, name: str, notes: list):
+    """The surface of a grown region among every curved type that holds it: the one with the most edges on it
+    (rulings), then the simplest; the report notes when several fit."""
+    V, F = at.mesh.vertices, at.mesh.faces
+    ids, tris = at.points(region)
+    fits = _candidates(V, F, ids, tris, eps, sag, first=False) or [fit]
+    if len(fits) == 1:
+        return fits[0]
+    rank = [(-_on_chords(f, V, F, tris, eps), i) for i, f in enumerate(fits)]
+    best = fits[min(rank)[1]]
+    notes.append(f"{name}: {best.type} chosen among {', '.join(f.type for f in fits)} that all hold its "
+                 f"{len(ids)} vertices to round-off ({-min(rank)[0]} edges on it)")
+    return best
+
+
+def _crease_free(mesh: Mesh, cos_crease: float) -> np.ndarray:
+    """(e, 2) the triangle pairs whose normals turn by less than the crease angle."""
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    n = mesh.face_normals
+    return pairs[np.einsum("ij,ij->i", n[pairs[:, 0]], n[pairs[:, 1]]) >= cos_crease]
+
+
+def free_form(at: _Atoms, taken: np.ndarray, tolerance: float) -> list[tuple[np.ndarray, SurfaceFit]]:
+    """B-spline faces through the vertices of the single triangles no plane or curved surface took, joined over
+    edges that are no crease: ``(triangles, fit)`` for each piece a B-spline holds within ``tolerance``. (Two
+    coplanar triangles are a plane's: a free-form face hardly ever has a flat pair, a CAD export draws a plane's
+    rectangle as two.)"""
+    mesh = at.mesh
+    V, F = mesh.vertices, mesh.faces
+    small = np.array([len(t) == 1 for t in at.tris]) & ~taken
+    tri_small = small[at.labels]
+    pairs = _crease_free(mesh, float(np.cos(CREASE_RAD)))
+    pairs = pairs[tri_small[pairs[:, 0]] & tri_small[pairs[:, 1]]]
+    m = len(F)
+    g = sp.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    _, comp = sp.csgraph.connected_components(g, directed=False)
+    out = []
+    for c in np.unique(comp[tri_small]):
+        tris = np.flatnonzero((comp == c) & tri_small)
+        ids = np.unique(F[tris])
+        if len(ids) < 16 or len(np.unique(at.labels[tris])) < 3:
+            continue
+        local = np.searchsorted(ids, F[tris])
+        nrm = own_normals(V, F[tris], local, len(ids))
+        try:
+            fit = fit_bspline_surface(V[ids], nrm, faces=local, tolerance=tolerance, exact=True)
+        except (FitError, np.linalg.LinAlgError, ValueError) as err:
+            log.info("free-form piece of %d triangles: no B-spline (%s)", len(tris), err)
+            continue
+        if fit.ok:
+            out.append((tris, fit))
+    return out
+
+
+#: A curved face of fewer atoms than this (a fillet one or two strips wide) is told from planes meeting at an angle
+#: only by its sag: it is kept when its chords lie no farther from it than the chords of the faces drawn with more.
+WEAK_ATOMS = 4
+#: ... with this margin: an exporter's chord tolerance bounds every face's sag, the faces measured reach it only
+#: where the chord criterion, not the angle criterion, placed their vertices.
+WEAK_SAG_MARGIN = 1.5
+
+
+def _sag_of(at: _Atoms, region: list, fit: SurfaceFit) -> float:
+    V, F = at.mesh.vertices, at.mesh.faces
+    tris = np.concatenate([at.tris[a] for a in region])
+    return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris)))))
+
+
+def _weak_dropped(at: _Atoms, regions: list, notes: list) -> list:
+    """The curved regions without those of fewer than :data:`WEAK_ATOMS` atoms whose sag exceeds the sag of the
+    well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none): planes meeting at a small
+    angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through their corners)."""
+    sags = [_sag_of(at, r, f) for r, f in regions]
+    strong = [s for (r, _), s in zip(regions, sags) if len(r) >= WEAK_ATOMS]
+    limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
+    kept = []
+    for (r, f), s in zip(regions, sags):
+        if len(r) < WEAK_ATOMS and s > limit:
+            notes.append(f"{len(r)} plane pieces a {f.type} holds to round-off kept as planes: its chords lie "
+                         f"{s:.3g} from it, the well-drawn curved faces' at most {limit / WEAK_SAG_MARGIN:.3g}")
+            continue
+        kept.append((r, f))
+    return kept
+
+
+#: A CAD part has few faces of one triangle (a triangular face, a corner of a chamfer); beyond this share of the faces
+#: they are pieces of a free-form face the exact path did not join.
+SINGLE_SHARE = 0.05
+
+
+def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -> ExactFaces | None:
+    """The faces of a mesh with exact vertices and their surfaces (see the module's text).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    tolerance : float
+        The run's tolerance (model units): what a free-form face's B-spline must hold its vertices within.
+    atoms : (m,) int, optional
+        :func:`plane_atoms` of the mesh, when already made.
+
+    Returns
+    -------
+    ExactFaces, or None when the mesh's faces are not found this way (free-form faces the seeds and B-splines did
+    not explain): the caller decomposes it instead.
+    """
+    V, F = mesh.vertices, mesh.faces
+    eps = roundoff(V)
+    sag = SAG_SHARE * float(mesh.diagonal)
+    if atoms is None:
+        atoms = plane_atoms(mesh, eps)
+    at = _Atoms.of(mesh, atoms)
+    notes: list = []
+    labels = np.full(len(F), -1, dtype=np.int64)
+    fits: dict = {}
+    taken = np.zeros(len(at.tris), bool)
+    curved = grow_curved(at, eps, sag)
+    for region, fit in _weak_dropped(at, curved, notes):
+        p = len(fits)
+        fits[p] = _best_type(at, region, fit, eps, sag, f"face {p}", notes)
+        labels[np.concatenate([at.tris[a] for a in region])] = p
+        taken[region] = True
+    for tris, fit in free_form(at, taken, tolerance):
+        p = len(fits)
+        fits[p] = fit
+        labels[tris] = p
+    for a, tris in enumerate(at.tris):
+        rest = tris[labels[tris] < 0]
+        if len(rest) == 0:
+            continue
+        p = len(fits)
+        fits[p] = fit_plane(V[np.unique(F[rest])], tolerance=tolerance)
+        labels[rest] = p
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    bounded = np.zeros(len(fits), bool)
+    cut = labels[pairs[:, 0]] != labels[pairs[:, 1]]
+    bounded[labels[pairs[cut].ravel()]] = True
+    if not bounded.all():  # a closed face (a whole torus): the decomposition cuts it on a seam, this path does not
+        log.info("exact: a face with no boundary")
+        return None
+    single = int(np.sum(np.bincount(labels) == 1))
+    if single > SINGLE_SHARE * len(fits) + 2:
+        log.info("exact: %d of %d faces are single triangles: a free-form surface no B-spline took", single, len(fits))
+        return None
+    return ExactFaces(labels, fits, notes)
+
+
+def as_decomposition(mesh: Mesh, labels: np.ndarray):
+    """A :class:`recon.decompose.Decomposition` whose parts are the exact faces, each a patch (the report and the
+    B-rep's face names read the decomposition; an exact mesh needs no skeleton: its faces are found directly)."""
+    from ..decompose._types import BoundaryCurves, Decomposition, Part, SurfaceSkeleton
+
+    k = int(labels.max()) + 1
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    nb: list = [set() for _ in range(k)]
+    for x, y in zip(a[a != b].tolist(), b[a != b].tolist()):
+        nb[x].add(y)
+        nb[y].add(x)
+    areas = np.bincount(labels, weights=mesh.face_areas, minlength=k)
+    counts = np.bincount(labels, minlength=k)
+    parts = tuple(Part(p, "patch", False, tuple(sorted(nb[p])), int(counts[p]), float(areas[p])) for p in range(k))
+    none3, none = np.zeros((0, 3)), np.zeros(0, dtype=np.int64)
+    curves = BoundaryCurves(none3, none, np.zeros(1, dtype=np.int64), np.zeros((0, 2), dtype=np.int64),
+                            np.zeros(0, bool))
+    skeleton = SurfaceSkeleton(none3, np.zeros((0, 2), dtype=np.int64), none)
+    return Decomposition(labels, parts, curves, skeleton, scale=float("nan"), omega_min=float("nan"),
+                         threshold=float("nan"), noise=0.0, critical=np.zeros(len(labels), bool))
