@@ -156,6 +156,7 @@ def convert(
         labels, fits, exact_notes = found.labels, found.fits, found.notes
         dec = as_decomposition(mesh, labels)
     else:
+        assert dec is not None  # decomposed above: the exact path found nothing
         labels, fits = _faces_and_fits(mesh, dec, tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)

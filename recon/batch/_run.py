@@ -191,7 +191,9 @@ def convert_many(
     parts = name_parts(find_parts(specs, exclude=out))
     out = _prepare_out(out, parts, suffix)
 
-    jobs, rows, owned = [], [], []
+    jobs: list = []
+    rows: list = []
+    owned: list = []
     keys = [run_key(part, version=__version__, tolerance=tolerance, fmt=format, deviation=deviation) for part in parts]
     earlier = [None] * len(parts) if force else finished_reports(out, parts, keys)
     writer = SummaryWriter(out)
