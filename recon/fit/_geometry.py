@@ -71,6 +71,17 @@ def _axial_radial(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> t
     return h, rho
 
 
+class _Axial:
+    """A surface of revolution about ``axis_dir``: the radial direction a point on its axis is given, made once (the
+    curve network projects onto one surface many times)."""
+
+    axis_dir: np.ndarray
+
+    @cached_property
+    def _axis_perp(self) -> np.ndarray:
+        return _perp(self.axis_dir)
+
+
 @dataclass(frozen=True)
 class Plane:
     """Plane through ``origin`` (3,) with unit ``normal`` (3,)."""
@@ -110,7 +121,7 @@ class Sphere:
 
 
 @dataclass(frozen=True)
-class Cylinder:
+class Cylinder(_Axial):
     """Infinite circular cylinder: axis through ``axis_point`` along unit ``axis_dir``, ``radius``."""
 
     axis_point: np.ndarray
@@ -122,10 +133,6 @@ class Cylinder:
         _, rho = _axial_radial(np.asarray(points, dtype=float), self.axis_point, self.axis_dir)
         return rho - self.radius
 
-    @cached_property
-    def _axis_perp(self) -> np.ndarray:
-        """The radial direction of a point on the axis, made once (the curve network projects onto a surface often)."""
-        return _perp(self.axis_dir)
 
     def project(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Closest points (k, 3) and outward unit normals (k, 3) for ``points`` (k, 3)."""
@@ -145,7 +152,7 @@ def cone_distance(points: np.ndarray, apex: np.ndarray, axis: np.ndarray, half_a
 
 
 @dataclass(frozen=True)
-class Cone:
+class Cone(_Axial):
     """Half cone (one nappe) with ``apex`` (3,), unit ``axis_dir`` into the opening, ``half_angle`` in (0, π/2)."""
 
     apex: np.ndarray
@@ -156,9 +163,6 @@ class Cone:
         """Signed distance (n,), positive outside."""
         return cone_distance(np.asarray(points, dtype=float), self.apex, self.axis_dir, self.half_angle)
 
-    @cached_property
-    def _axis_perp(self) -> np.ndarray:
-        return _perp(self.axis_dir)
 
     def project(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Closest points (k, 3) on the nappe (the apex for points behind it) and unit normals (k, 3)."""
@@ -173,7 +177,7 @@ class Cone:
 
 
 @dataclass(frozen=True)
-class Torus:
+class Torus(_Axial):
     """Torus about ``center`` (3,) and unit ``axis_dir``; ``major_radius`` R (to the tube's centre circle), ``minor_radius`` r."""
 
     center: np.ndarray
@@ -186,9 +190,6 @@ class Torus:
         h, rho = _axial_radial(np.asarray(points, dtype=float), self.center, self.axis_dir)
         return np.hypot(rho - self.major_radius, h) - self.minor_radius
 
-    @cached_property
-    def _axis_perp(self) -> np.ndarray:
-        return _perp(self.axis_dir)
 
     def project(self, points) -> tuple[np.ndarray, np.ndarray]:
         """Closest points (k, 3) on the tube and outward unit normals (k, 3) for ``points`` (k, 3)."""
