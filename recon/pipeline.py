@@ -21,7 +21,7 @@ from .decompose import Decomposition, decompose
 from .errors import BrepError, InputError, ReconError
 from ._tolerance import tolerance_for
 from .mesh import Mesh, clean_mesh, load_mesh
-from .segment import segment
+from .segment import as_decomposition, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
 
 if TYPE_CHECKING:  # (build123d loads on first use of a result's shape; see Conversion.shape)
     import build123d as bd
@@ -151,8 +151,6 @@ def convert(
     step("fit", 0.0)
     exact_notes = None
     if found is not None:
-        from .segment._exact import as_decomposition
-
         labels, fits, exact_notes = found.labels, found.fits, found.notes
         dec = as_decomposition(mesh, labels)
     else:
@@ -201,9 +199,8 @@ EXACT_MAX_TRIANGLES = 50_000
 
 def _exact(mesh: Mesh, tolerance: float | None):
     """The faces of ``mesh`` found from its exact vertices when it is a CAD export's
-    (:func:`recon.segment._exact.exact_tessellation`, :func:`~recon.segment._exact.exact_faces`); None for any other
+    (:func:`recon.segment.exact_tessellation`, :func:`~recon.segment.exact_faces`); None for any other
     mesh, or when they do not explain it (it is decomposed)."""
-    from .segment._exact import exact_faces, exact_tessellation, plane_atoms, roundoff
 
     eps = roundoff(mesh.vertices)
     if len(mesh.faces) > EXACT_MAX_TRIANGLES or not exact_tessellation(mesh, eps):
