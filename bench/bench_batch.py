@@ -21,6 +21,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "fixtures" / "data"
+MESH_DIR = ROOT.parent / "shared" / "meshes"  # ../shared beside the checkout, as CI lays it out
 SCANS = ["block", "casting", "fandisk", "fandisk-b", "fandisk-b_noisy0.1", "joint", "rocker-arm", "rocker-arm2500"]
 
 
@@ -143,7 +144,7 @@ def _inputs(corpus: str | None, count: int, *, max_triangles: int | None = None,
     if max_triangles:
         found = [p for p in found if (_triangles(p) or 0) <= max_triangles]
     parts = [str(p) for p in found][:count] if corpus else [str(p) for p in found]
-    scans = [f"/work/shared/meshes/{s}.off" for s in scans if Path(f"/work/shared/meshes/{s}.off").exists()]
+    scans = [str(MESH_DIR / f"{s}.off") for s in scans if (MESH_DIR / f"{s}.off").exists()]
     print(f"parts: {len(parts)} from {corpus or 'fixtures/data'}, scans: {len(scans)}", file=sys.stderr)
     return parts + scans
 
@@ -217,7 +218,7 @@ def main() -> None:
     ap.add_argument("--corpus", help="folder of export-corpus STL files (default: the fixtures)")
     ap.add_argument("--count", type=int, default=40, help="corpus parts taken, first by name (default 40)")
     ap.add_argument("--max-triangles", type=int, help="only corpus parts of at most this many triangles")
-    ap.add_argument("--scans", nargs="*", default=SCANS, help="real meshes of /work/shared/meshes taken (names)")
+    ap.add_argument("--scans", nargs="*", default=SCANS, help="real meshes of ../shared/meshes taken (names)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--timeout", type=float, help="seconds per part (swept corpus parts can run for many minutes)")
     ap.add_argument("--memory-limit", help="Dask's memory limit per worker, and per part (e.g. 4GB)")

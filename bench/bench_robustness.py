@@ -23,7 +23,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 FIXTURES = REPO / "fixtures" / "data"
-MESHES = Path("/work/shared/meshes")
+MESHES = REPO.parent / "shared" / "meshes"  # ../shared beside the checkout, as CI lays it out
 PARTS = ("box_chamfer", "box_fillet", "lofted", "plate_holes", "pocket", "prism", "revolved")
 VARIANTS = ("clean", "noisy05", "noisy20", "coarse", "open")
 
