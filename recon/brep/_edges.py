@@ -26,7 +26,7 @@ from ..errors import BrepError
 
 #: A vertex's tolerance never below OCC's own precision (``Precision::Confusion``), however small its gap.
 MIN_VERTEX_TOLERANCE = 1e-7
-#: A vertex tolerance raised to a measured gap goes 1% beyond it (scales with the gap), so rounding cannot leave it short.
+#: A vertex tolerance raised to a measured gap goes 1% beyond it (scales with the gap): rounding never leaves it short.
 VERTEX_SLACK = 1.01
 
 

@@ -17,9 +17,10 @@ from scipy.optimize import least_squares
 from .._array import as_points, perpendicular_frame
 from ..errors import FitError, InputError
 from ._geometry import BSplineCurve, Circle, EdgeCurve, Line
-from ._types import CurveFit, deviation_stats, within_tolerance
+from ._types import HUGE, CurveFit, deviation_stats, within_tolerance
 
-__all__ = ["fit_line", "fit_circle", "fit_bspline_curve", "fit_curve", "fit_edge_curve", "polyline_curve", "point_curve"]
+__all__ = ["fit_line", "fit_circle", "fit_bspline_curve", "fit_curve", "fit_edge_curve", "polyline_curve",
+           "point_curve"]
 
 log = logging.getLogger(__name__)
 
@@ -99,7 +100,7 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", xy, xy), rcond=None)
     r2 = sol[2] + sol[:2] @ sol[:2]
     size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > 1e3 * size:
+    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > HUGE * size:
         return _failed_circle(len(pts), "degenerate (collinear points: a line)")
     c0 = sol[0] * e1 + sol[1] * e2
 
@@ -117,7 +118,7 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     center = c0 + res.x[2:5] + mean
     radius = abs(float(res.x[5]))
     limit = tolerance if tolerance is not None else 4 * 1.4826 * float(np.median(np.abs(res.fun)))
-    if radius > 1e3 * size or size**2 / (8 * radius) < limit:
+    if radius > HUGE * size or size**2 / (8 * radius) < limit:
         return _failed_circle(len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a line)")
     w = pts - center
     w -= np.outer(w @ normal, normal)

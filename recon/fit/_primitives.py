@@ -31,7 +31,7 @@ from ._noise import estimate_normals
 from ._trf import trf_soft_l1
 from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
-from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
+from ._types import HUGE, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
 
@@ -39,8 +39,6 @@ log = logging.getLogger(__name__)
 
 #: Larger inputs are fitted on an evenly strided subset of this many points (deviations use all points).
 MAX_FIT_POINTS = 2000
-#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
-_HUGE = 1e3
 #: The first refinement pass runs on about this many points (see ``_refine``).
 COARSE_POINTS = 400
 #: Evaluation budget per refinement pass: from its closed-form start the right type converged in ≤ 14
@@ -264,7 +262,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     a = _columns(2 * q, np.ones(len(q)))
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
     c0, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
-    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > _HUGE * size:
+    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > HUGE * size:
         return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
 
     def fun(x, q):
@@ -278,7 +276,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
-    if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"center": _vec(center), "radius": radius}
     return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
@@ -310,7 +308,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     d0 = vec[:, 0]
     e1, e2 = perpendicular_frame(d0)
     circle = _circle_2d(_columns(q @ e1, q @ e2))
-    if circle is None or circle[1] > _HUGE * size:
+    if circle is None or circle[1] > HUGE * size:
         return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
     c0 = circle[0][0] * e1 + circle[0][1] * e2
 
@@ -333,7 +331,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
     radius = abs(float(res.x[4]))
-    if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
     return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
@@ -400,7 +398,7 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     if alpha > np.pi / 2 - _MIN_ANGLE:
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a plane)")
     apex = c - (radius / np.tan(alpha)) * d
-    if np.linalg.norm(apex) > _HUGE * size:
+    if np.linalg.norm(apex) > HUGE * size:
         return _failed("cone", len(pts), "degenerate (apex at infinity: a cylinder)")
     if np.median((q - apex) @ d) < 0 or radius < 0:
         return _failed("cone", len(pts), "degenerate (the points straddle the apex)")
@@ -433,7 +431,7 @@ def _cone_start(q: np.ndarray, nrm: np.ndarray, size: float):
     apex = None
     if evals[0] > 1e-6 * evals[-1]:
         apex = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
-        if np.linalg.norm(apex) > _HUGE * size:
+        if np.linalg.norm(apex) > HUGE * size:
             apex = None
     if apex is not None:
         u = q - apex
@@ -512,7 +510,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0, d0 = axis
     h, rho = _rho_z(q, c0, d0)
     circle = _circle_2d(_columns(rho, h))
-    if circle is None or circle[1] > _HUGE * size:
+    if circle is None or circle[1] > HUGE * size:
         return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
     (r_major0, z0), r_minor0 = circle
     c0 = c0 + z0 * d0
@@ -540,9 +538,9 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     limit = _limit_tolerance(tolerance, res.fun)
     if big < max(1e-3 * size, limit):
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
-    if big > _HUGE * size or size**2 / (8 * big) < limit:
+    if big > HUGE * size or size**2 / (8 * big) < limit:
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
-    if small <= 0 or small > _HUGE * size:
+    if small <= 0 or small > HUGE * size:
         return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")
     if big < small:
         return _failed("torus", len(pts), f"spindle torus (major {big:.3g} < minor {small:.3g}) is not supported")

@@ -28,7 +28,7 @@ import numpy as np
 from .._array import axis_helper, col_means, columns as _columns, cross3, extent, row_norms, row_sums
 from ..errors import FitError
 from ._select import ANALYTIC_FITTERS
-from ._types import SurfaceFit, deviation_stats, percentile as _percentile, within_tolerance
+from ._types import HUGE, SurfaceFit, deviation_stats, percentile as _percentile, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
 
@@ -37,8 +37,6 @@ __all__ = ["quick_fit", "surface_normals", "closed_form"]
 NEAR = {"plane": 3.0, "sphere": 3.0, "cylinder": 3.0, "cone": 3.0, "torus": 3.0}
 #: Gauss–Newton steps polishing the sphere's and the cylinder's closed form.
 GN_STEPS = 2
-#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
-HUGE = 1e3
 
 
 def _unit_rows(v: np.ndarray) -> np.ndarray:
