@@ -1,7 +1,8 @@
 """List recon's tuned numeric constants and check each says, in a comment, what it scales with.
 
 A constant is a module-level assignment of a number (``NAME = 0.25``, also ``-1``, ``2 * 3``) or a float literal
-inside a function other than the arithmetic ones (0, 0.5, 1, 2, ...) and the floating-point guards (≤ 1e-9).
+inside a function other than the arithmetic ones (0, 0.5, 1, 2, ...), the floating-point guards (≤ 1e-9) and
+default arguments (documented parameters).
 Its comment is the ``#`` / ``#:`` block right above it or a comment on its line. ``--check`` exits 1 when a
 constant has none, or when any comment in recon/ names a benchmark mesh (that evidence belongs in bench/*.md,
 see bench/constants.md).
@@ -116,8 +117,25 @@ def constants(path: Path) -> list[Constant]:
             module_level.update(id(n) for n in ast.walk(value))
             out.append(Constant(rel, node.lineno, target, ast.unparse(value),
                                 _comment_for(node.lineno, lines, comments)))
+    # Consecutive constants under one comment block share it (``#: ... SPLIT_COVER ... each at least SPLIT_MIN_SHARE``).
+    for prev, cur in zip(out, out[1:]):
+        if not cur.comment and cur.line == prev.line + 1:
+            cur.comment = prev.comment
+    # A function's default arguments are public parameters its docstring documents, not hidden constants.
+    defaults = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                for d in (*f.args.defaults, *f.args.kw_defaults) if d is not None for n in ast.walk(d)}
+    # A literal inside a commented module-level table (a dict or tuple of numbers) has that table's comment.
+    tables = {}
+    for node in tree.body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)) and node.value is not None and not _number(node.value):
+            text = _comment_for(node.lineno, lines, comments)
+            if text:
+                tables.update({id(n): text for n in ast.walk(node.value)})
     for node in ast.walk(tree):
-        if isinstance(node, ast.Constant) and id(node) not in module_level and _tuned_literal(node):
+        if isinstance(node, ast.Constant) and id(node) in tables and _tuned_literal(node):
+            out.append(Constant(rel, node.lineno, "(table)", repr(node.value), tables[id(node)]))
+        elif (isinstance(node, ast.Constant) and id(node) not in module_level and id(node) not in defaults
+                and _tuned_literal(node)):
             out.append(Constant(rel, node.lineno, "(inline)", repr(node.value),
                                 _comment_for(node.lineno, lines, comments)))
     return sorted(out, key=lambda c: c.line)

@@ -237,6 +237,7 @@ def _cover_pcurve_ends(edge, face, surface) -> None:
         uv = c2d.Value(t)
         d = surface.Value(uv.X(), uv.Y()).Distance(BRep_Tool.Pnt_s(vtx))
         if d > BRep_Tool.Tolerance_s(vtx):
+            # 5% beyond the measured p-curve gap (scales with the gap): covers the re-projection ShapeFix does later
             builder.UpdateVertex(vtx, 1.05 * d)
 
 

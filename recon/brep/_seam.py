@@ -59,6 +59,7 @@ def seam_split(model: SurfaceModel, loops: list[np.ndarray], edges, geo: Network
 
     if model is None or model.kind not in SEAM_SURFACES or len(loops) != 2:
         return None
+    # a loop winds once about the axis within 5% of a turn (scale-free: sampled loops miss a little)
     if not all(abs(abs(_winding(model, _loop_points(l, geo))) - 1.0) < 0.05 for l in loops):
         return None
     d = _unit_np(model.axis)

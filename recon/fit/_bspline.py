@@ -381,6 +381,7 @@ def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, interva
                       max_intervals, per_control: float = POINTS_PER_CONTROL) -> SurfaceFit:
     """Steps 2–5 of the module notes on one initial parametrisation ``uv`` (n, 2)."""
     lo, hi = uv.min(axis=0), uv.max(axis=0)
+    # UV box grown by 5% of its extent so the surface covers its boundary points (scales with the patch)
     margin = 0.05 * (hi - lo)
     box = np.column_stack([lo - margin, hi + margin])
     extent = hi - lo
@@ -398,6 +399,7 @@ def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, interva
             return max(degree + 2, round(c * aspect[0])) * (max(2, round(c * aspect[1])) + degree)
 
         cap = max([c for c in range(3, max_intervals + 1) if controls(c) <= len(pts) / per_control], default=3)
+    # about 40 points per knot span by default: noise averages out (tuned: see POINTS_PER_CONTROL)
     k = intervals or max(3, int(round(np.sqrt(len(pts) / 40.0))))
     k = min(k, cap)
     while True:

@@ -117,6 +117,7 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     normal /= np.linalg.norm(normal)
     center = c0 + res.x[2:5] + mean
     radius = abs(float(res.x[5]))
+    # 4 sigma of the residuals (MAD × 1.4826) when no tolerance is given (scales with noise sigma)
     limit = tolerance if tolerance is not None else 4 * 1.4826 * float(np.median(np.abs(res.fun)))
     if radius > HUGE * size or size**2 / (8 * radius) < limit:
         return _failed_circle(len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a line)")

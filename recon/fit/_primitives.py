@@ -130,6 +130,7 @@ def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
         if not scale > 0:
             raise FitError(f"`scale` must be > 0, got {scale}")
         return float(scale)
+    # MAD to sigma of a normal distribution (a statistical constant)
     mad = 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
     return max(mad, 1e-9 * size)
 
@@ -150,6 +151,7 @@ def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
     """
     if tolerance is not None:
         return float(tolerance)
+    # 4 sigma of the residuals (MAD × 1.4826) when no tolerance is given (scales with noise sigma)
     return 4.0 * 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
 
 
@@ -429,6 +431,7 @@ def _cone_start(q: np.ndarray, nrm: np.ndarray, size: float):
     m = nrm.T @ nrm
     evals, vec = np.linalg.eigh(m)
     apex = None
+    # eigenvalue ratio below 1e-6: the normals are coplanar, a cylinder, no apex (scale-free)
     if evals[0] > 1e-6 * evals[-1]:
         apex = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
         if np.linalg.norm(apex) > HUGE * size:
@@ -473,6 +476,7 @@ def _revolution_axis(q: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.nda
     _, vec = np.linalg.eigh(a.T @ a)
     d, mom = vec[:3, 0], vec[3:, 0]
     nd = np.linalg.norm(d)
+    # a direction shorter than 1e-6 of a unit one is no direction (round-off, scale-free)
     if nd < 1e-6:
         return None
     d, mom = d / nd, mom / nd
@@ -536,6 +540,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     center = c0 + res.x[2:5] + mean
     big, small = float(res.x[5]), float(res.x[6])
     limit = _limit_tolerance(tolerance, res.fun)
+    # a major radius below a thousandth of the patch is no torus (scales with part size)
     if big < max(1e-3 * size, limit):
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
     if big > HUGE * size or size**2 / (8 * big) < limit:

@@ -135,6 +135,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
     if kind == "cone":
         m = nrm.T @ nrm
         ev = np.linalg.eigvalsh(m)
+        # eigenvalue ratio below 1e-6: the normals are coplanar, a cylinder, no apex (scale-free)
         if not ev[0] > 1e-6 * ev[-1]:
             return None
         apex = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
@@ -162,6 +163,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         vec = np.linalg.eigh(a.T @ a)[1][:, 0]
         d, mom = vec[:3], vec[3:]
         nd = np.linalg.norm(d)
+        # a direction shorter than 1e-6 of a unit one is no direction (round-off, scale-free)
         if nd < 1e-6:
             return None
         d, mom = d / nd, mom / nd
@@ -174,6 +176,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         if c is None:
             return None
         (big, z0), small = c
+        # a major radius below a thousandth of the patch is no torus (scales with part size)
         if big < max(1e-3 * size, tol) or big > HUGE * size or size * size / (8 * big) < tol:
             return None
         if small <= 0 or small > HUGE * size or big < small:
