@@ -45,7 +45,7 @@ PLAIN = {0.0, 0.5, 1.0, 2.0, 3.0, 4.0, 10.0, 100.0, 0.25, 0.75, 1.5, 180.0, 360.
 GUARD = 1e-9
 
 #: Names of the benchmark meshes and suites a code comment must not cite (their evidence is in bench/*.md).
-MESH_NAMES = re.compile(r"rocker[-_ ]?arm|casting|\bjoint\b|\babc\b|abc_\d|fandisk|crank|bearing|mpeg7",
+MESH_NAMES = re.compile(r"rocker[-_ ]?arm|casting|\bjoint\b|(?<!\.)\babc\b|abc_\d|fandisk|crank|bearing|mpeg7",
                         re.IGNORECASE)
 
 
