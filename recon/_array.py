@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["as_points", "axis_helper", "col_means", "col_sums", "columns", "cross3", "extent", "perpendicular_frame",
+__all__ = ["HELPER_COS", "as_points", "axis_helper", "helper_axis",
+           "col_means", "col_sums", "columns", "cross3", "extent", "perpendicular_frame",
            "row_norms", "row_sums", "unique_inverse", "unit"]
 
 
@@ -110,6 +111,16 @@ def columns(*cols) -> np.ndarray:
             out[:, j : j + w] = c
         j += w
     return out
+
+
+#: |cos| to the x axis above which the helper axis is y: below it |d × x| ≥ sin 25.8° (scale-free).
+HELPER_COS = 0.9
+
+
+def helper_axis(d) -> np.ndarray:
+    """The x axis, or the y axis where ``d`` (unit) lies within 25.8° of x: a vector ``d × helper`` is well
+    conditioned for."""
+    return np.array([1.0, 0.0, 0.0]) if abs(d[0]) < HELPER_COS else np.array([0.0, 1.0, 0.0])
 
 
 def axis_helper(d: np.ndarray) -> tuple[float, float, float]:

@@ -587,6 +587,7 @@ def plot_deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, sign
         a, b, c = (v[f[order, k]] for k in range(3))
         nrm = np.cross(b - a, c - a)
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+        # Lambert shading between 55% and 100% brightness (display only)
         shade = 0.55 + 0.45 * np.abs(nrm @ towards)
         rgba = cmap(norm(face_val))
         rgba[:, :3] *= shade[:, None]
@@ -611,6 +612,7 @@ def plot_deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, sign
     ax.set_ylim(y.min(), y.max())
     ax.set_aspect("equal")
     ax.set_axis_off()
+    # colour bar length (display only)
     bar = fig.colorbar(cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.8)
     bar.set_label("signed distance mesh → B-rep (model units, + outside)")
     if title:

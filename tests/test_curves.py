@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from recon.network import OUTSIDE, curve_network, fit_edge_curve, meeting_point, network_geometry
+from recon.fit import fit_edge_curve
+from recon.network import OUTSIDE, curve_network, meeting_point, network_geometry
 from recon.errors import InputError
 
 
@@ -124,14 +125,14 @@ def test_fit_edge_curve_recovers_line_circle_and_pins_spline():
     arc = np.stack([5 + 2.5 * np.cos(ang), -1 + 2.5 * np.sin(ang), np.full_like(ang, 7.0)], 1)
     c = fit_edge_curve(arc, closed=False, tolerance=1e-6)
     assert c.kind == "circle"
-    assert c.params["radius"] == pytest.approx(2.5, rel=1e-9)
-    assert np.allclose(c.params["center"], [5, -1, 7], atol=1e-9)
-    assert c.params["t1"] - c.params["t0"] == pytest.approx(1.5, abs=1e-9)
+    assert c.circle.radius == pytest.approx(2.5, rel=1e-9)
+    assert np.allclose(c.circle.center, [5, -1, 7], atol=1e-9)
+    assert c.t1 - c.t0 == pytest.approx(1.5, abs=1e-9)
 
     helix = np.stack([np.cos(3 * t), np.sin(3 * t), 2 * t], 1)
     c = fit_edge_curve(helix, closed=False, tolerance=1e-4)
     assert c.kind == "bspline" and c.residual <= 1e-4
-    ctrl = c.params["control_points"]
+    ctrl = c.spline.control_points
     assert np.array_equal(ctrl[0], helix[0]) and np.array_equal(ctrl[-1], helix[-1])
 
 
@@ -162,8 +163,8 @@ def test_edge_spline_through_zigzag_points_stays_near_them():
         pts = np.column_stack([x, rng.normal(0, 0.3, 30), np.zeros(30)])
         c = fit_edge_curve(pts, closed=False, tolerance=1e-3)
         assert c.kind == "bspline"
-        p = c.params
-        y = BSpline(p["knots"], p["control_points"], p["degree"])(np.linspace(0, 1, 2000))[:, 1]
+        p = c.spline
+        y = BSpline(p.knots, p.control_points, p.degree)(np.linspace(0, 1, 2000))[:, 1]
         assert np.abs(y).max() <= 2.5 * np.abs(pts[:, 1]).max()
         # The residual reported is the curve's real distance from the points, not a 1e-13 interpolation claim.
         assert c.residual >= 0.05
@@ -194,8 +195,8 @@ def test_edge_spline_never_loops_back():
     pts = np.array([[0.0, 0.0, 0.0], [-0.2284, -0.2957, -0.0366], [-0.299, -0.4522, -0.5694],
                     [-0.268, 0.247, -1.0951], [-0.2836, -0.1997, -0.8314], [-0.1894, -0.623, -0.7589]])
     c = fit_edge_curve(pts, closed=False, tolerance=0.12)
-    p = c.params
-    q = BSpline(p["knots"], p["control_points"], p["degree"])(np.linspace(0, 1, 400))
+    p = c.spline
+    q = BSpline(p.knots, p.control_points, p.degree)(np.linspace(0, 1, 400))
     _, _, vt = np.linalg.svd(pts - pts.mean(axis=0))
     assert not _crosses_itself((q - pts.mean(axis=0)) @ vt[:2].T)
     assert np.allclose(q[[0, -1]], pts[[0, -1]])
@@ -244,8 +245,8 @@ def test_coarse_chords_are_refined_onto_the_surfaces_edge():
     for e in rims:
         c = geo.curves[e]
         assert c.kind == "circle"
-        assert abs(c.params["radius"] - radius) <= tol
-        assert abs(c.params["t1"] - np.pi / 2) <= 1e-2
+        assert abs(c.circle.radius - radius) <= tol
+        assert abs(c.t1 - np.pi / 2) <= 1e-2
         pts = geo.polyline(e)
         assert np.max(np.abs(np.hypot(pts[:, 0], pts[:, 1]) - radius)) <= tol
     # Not refined, each rim stays the chord: 1 - cos 45° = 0.29 of the radius inside the cylinder.
@@ -270,9 +271,14 @@ def test_two_processes_place_the_network_as_one_does():
     np.testing.assert_array_equal(two.edge_gap, one.edge_gap)
     assert [c.kind for c in two.curves] == [c.kind for c in one.curves]
     for a, b in zip(one.curves, two.curves):
-        assert a.params.keys() == b.params.keys()
-        for k in a.params:
-            np.testing.assert_array_equal(np.asarray(b.params[k]), np.asarray(a.params[k]))
+        for k in ("start", "end", "residual", "t0", "t1"):
+            np.testing.assert_array_equal(getattr(b, k), getattr(a, k))
+        for part, names in (("circle", ("center", "normal", "radius", "x_dir")),
+                            ("spline", ("degree", "knots", "control_points"))):
+            assert (getattr(a, part) is None) == (getattr(b, part) is None)
+            if getattr(a, part) is not None:
+                for k in names:
+                    np.testing.assert_array_equal(getattr(getattr(b, part), k), getattr(getattr(a, part), k))
 
 
 
@@ -311,13 +317,13 @@ def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
     geo = network_geometry(net, project, tolerance=tol)
     pts = geo.polyline(e)
     smooth = fit_edge_curve(pts, closed=False, tolerance=tol)
-    curve = BSpline(smooth.params["knots"], smooth.params["control_points"], smooth.params["degree"])
+    curve = BSpline(smooth.spline.knots, smooth.spline.control_points, smooth.spline.degree)
     assert np.max(np.abs(curve(np.linspace(0, 1, 101))[:, 1])) > STRAY_FACTOR * tol  # it bows out along y
     c = geo.curves[e]
-    assert c.kind == "bspline" and c.params["degree"] == 1
-    np.testing.assert_allclose(c.params["control_points"], pts)
+    assert c.kind == "bspline" and c.spline.degree == 1
+    np.testing.assert_allclose(c.spline.control_points, pts)
     # every point of it is on the chords: in the plane, and between y = 0 and 0.03
-    edge = BSpline(c.params["knots"], c.params["control_points"], 1)(np.linspace(0, 1, 101))
+    edge = BSpline(c.spline.knots, c.spline.control_points, 1)(np.linspace(0, 1, 101))
     assert np.max(np.abs(edge[:, 0])) <= 1e-12 and edge[:, 1].min() >= -1e-12 and edge[:, 1].max() <= 0.03 + 1e-12
 
 

@@ -14,6 +14,7 @@ stages["load"] = time.perf_counter() - t
 
 t = time.perf_counter()
 shape = Part.Shape()
+# mesh-to-shape sewing tolerance in model units: FreeCAD's own default for makeShapeFromMesh (its route, not recon's)
 shape.makeShapeFromMesh(mesh.Topology, 0.01)
 stages["shape_from_mesh"] = time.perf_counter() - t
 

@@ -51,6 +51,7 @@ def convert_job(job: dict) -> dict:
     if os.environ.get(ABORT_ENV) and os.environ[ABORT_ENV] == job["input_name"]:
         os.abort()
     while os.environ.get(HANG_ENV) == job["input_name"] and not os.path.exists(job["mesh"] + ".release"):
+        # poll period in seconds of the test hook's hang (wall time, not geometry)
         time.sleep(0.2)
     stage, name = Path(job["stage"]), job["name"]
     # jobs=1: the batch's parallelism is one part per worker; a second process per part would only compete.

@@ -61,6 +61,7 @@ _ANALYTIC = {"plane", "cylinder", "cone", "sphere", "torus"}
 # Width of the band (in UV normalised to the face's UV box) in which the polygon test on the
 # sampled p-curves is not trusted and the exact OCCT classifier decides.
 _BAND = 2e-3
+#: Samples along each p-curve for that polygon test: 2^8 + 1, fine against the band (scale-free, UV normalised).
 _PCURVE_SAMPLES = 257
 # Points per batch of signed_distance.
 _QUERY_CHUNK = 100_000
@@ -125,6 +126,7 @@ class BrepDistance:
         xmin, ymin, zmin, xmax, ymax, zmax = box.Get()
         self.diagonal = float(math.dist((xmin, ymin, zmin), (xmax, ymax, zmax)))
         if deflection is None:
+            # default deflection: a thousandth of the part's diagonal (scales with part size)
             deflection = 1e-3 * self.diagonal
         rng = np.random.default_rng(0) if rng is None else rng
         mesher = BRepMesh_IncrementalMesh(shape, deflection, False, 0.25, True)
@@ -247,6 +249,7 @@ class BrepDistance:
     def _untriangulated_uv(self, fd: _Face) -> np.ndarray:
         """(k, 2) UV points on a face without triangulation: its p-curve samples plus a grid inside it."""
         u0, du, v0, dv = fd.uv_box
+        # a UV box a million diagonals (or turns) wide is an unbounded surface, not a face (scales with part size)
         if not all(map(math.isfinite, fd.uv_box)) or max(du, dv) > 1e6 * max(self.diagonal, 2 * math.pi):
             return np.empty((0, 2))
         uv = [np.column_stack([u0 + r[:, 0] * du, v0 + r[:, 1] * dv]) for r in fd.rings]
@@ -354,6 +357,7 @@ class BrepDistance:
             inside ^= MplPath(ring).contains_points(nuv)
         if fd.ring_tree is not None:
             near = fd.ring_tree.query(nuv, k=1, distance_upper_bound=_BAND)[0] < _BAND
+            # UV coincidence at 1e-7 of the diagonal: OCC's Precision::Confusion relative to part size
             tol = 1e-7 * self.diagonal
             for i in np.flatnonzero(near):
                 state = BRepClass_FaceClassifier(fd.face, gp_Pnt2d(*wrapped[i]), tol).State()

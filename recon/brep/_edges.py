@@ -20,11 +20,14 @@ from OCP.TopExp import TopExp, TopExp_Explorer
 from OCP.TopTools import TopTools_IndexedMapOfShape
 from OCP.TopoDS import TopoDS, TopoDS_Wire
 
-from ..network import CurveNetwork, EdgeCurve, NetworkGeometry
+from ..fit import BSplineCurve, CurveKind, EdgeCurve
+from ..network import CurveNetwork, NetworkGeometry
 from ..errors import BrepError
 
 #: A vertex's tolerance never below OCC's own precision (``Precision::Confusion``), however small its gap.
 MIN_VERTEX_TOLERANCE = 1e-7
+#: A vertex tolerance raised to a measured gap goes 1% beyond it (scales with the gap): rounding never leaves it short.
+VERTEX_SLACK = 1.01
 
 
 def pnt(p) -> gp_Pnt:
@@ -35,9 +38,10 @@ def vec3(p) -> np.ndarray:
     return np.array([p.X(), p.Y(), p.Z()])
 
 
-def bspline_curve(params: dict) -> Geom_BSplineCurve:
-    ctrl = np.asarray(params["control_points"], float)
-    knots = np.asarray(params["knots"], float)
+def bspline_curve(spline: BSplineCurve) -> Geom_BSplineCurve:
+    """The OCC curve of ``spline``: its full knot vector as distinct knots with multiplicities."""
+    ctrl = np.asarray(spline.control_points, float)
+    knots = np.asarray(spline.knots, float)
     vals, mults = np.unique(np.round(knots, 14), return_counts=True)
     poles = TColgp_Array1OfPnt(1, len(ctrl))
     for i, c in enumerate(ctrl, start=1):
@@ -47,28 +51,39 @@ def bspline_curve(params: dict) -> Geom_BSplineCurve:
     for i, (v, m) in enumerate(zip(vals, mults), start=1):
         kn.SetValue(i, float(v))
         mu.SetValue(i, int(m))
-    return Geom_BSplineCurve(poles, kn, mu, int(params["degree"]))
+    return Geom_BSplineCurve(poles, kn, mu, int(spline.degree))
+
+
+def geom_curve(curve: EdgeCurve) -> Geom_Circle | Geom_BSplineCurve | None:
+    """The one conversion of an :class:`~recon.fit.EdgeCurve` to an OCC curve: a ``Geom_Circle`` or a
+    ``Geom_BSplineCurve``; None for a line (an edge between its two vertices needs no curve object)."""
+    if curve.kind is CurveKind.CIRCLE:
+        c = curve.circle
+        assert c is not None
+        ax = gp_Ax2(pnt(c.center), gp_Dir(*map(float, c.normal)), gp_Dir(*map(float, c.x_dir)))
+        return Geom_Circle(ax, float(c.radius))
+    if curve.kind is CurveKind.BSPLINE:
+        assert curve.spline is not None
+        return bspline_curve(curve.spline)
+    return None
 
 
 def make_edge(curve: EdgeCurve, v1, v2, builder: BRep_Builder):
     """A TopoDS_Edge on ``curve`` between the shared vertices ``v1``, ``v2``."""
     try:
-        if curve.kind == "line":
+        geom = geom_curve(curve)
+        if geom is None:
             mk = BRepBuilderAPI_MakeEdge(v1, v2)
-        elif curve.kind == "circle":
-            p = curve.params
-            ax = gp_Ax2(pnt(p["center"]), gp_Dir(*map(float, p["normal"])), gp_Dir(*map(float, p["xdir"])))
-            circ = Geom_Circle(ax, float(p["radius"]))
+        elif isinstance(geom, Geom_Circle):
             # The vertices lie on the fitted circle within the fit residual: let their tolerance cover it.
-            for v, t in ((v1, p["t0"]), (v2, p["t1"])):
-                d = BRep_Tool.Pnt_s(v).Distance(circ.Value(float(t)))
+            for v, t in ((v1, curve.t0), (v2, curve.t1)):
+                d = BRep_Tool.Pnt_s(v).Distance(geom.Value(float(t)))
                 if d > BRep_Tool.Tolerance_s(v):
-                    builder.UpdateVertex(v, 1.01 * d)
-            mk = BRepBuilderAPI_MakeEdge(circ, v1, v2, float(p["t0"]), float(p["t1"]))
+                    builder.UpdateVertex(v, VERTEX_SLACK * d)
+            mk = BRepBuilderAPI_MakeEdge(geom, v1, v2, float(curve.t0), float(curve.t1))
         else:
             # Explicit parameters: on a closed curve both ends project to the first one otherwise.
-            bsc = bspline_curve(curve.params)
-            mk = BRepBuilderAPI_MakeEdge(bsc, v1, v2, bsc.FirstParameter(), bsc.LastParameter())
+            mk = BRepBuilderAPI_MakeEdge(geom, v1, v2, geom.FirstParameter(), geom.LastParameter())
         if not mk.IsDone():
             raise BrepError(f"BRepBuilderAPI_MakeEdge failed ({mk.Error()}) for a {curve.kind} edge")
         return mk.Edge()
@@ -222,6 +237,7 @@ def _cover_pcurve_ends(edge, face, surface) -> None:
         uv = c2d.Value(t)
         d = surface.Value(uv.X(), uv.Y()).Distance(BRep_Tool.Pnt_s(vtx))
         if d > BRep_Tool.Tolerance_s(vtx):
+            # 5% beyond the measured p-curve gap (scales with the gap): covers the re-projection ShapeFix does later
             builder.UpdateVertex(vtx, 1.05 * d)
 
 
@@ -232,7 +248,7 @@ def shared_topology(network: CurveNetwork, geo: NetworkGeometry, warnings: list)
     vertices = []
     for p, gap in zip(geo.points, geo.vertex_gap):
         vtx = BRepBuilderAPI_MakeVertex(pnt(p)).Vertex()
-        builder.UpdateVertex(vtx, max(MIN_VERTEX_TOLERANCE, 1.01 * float(gap)))
+        builder.UpdateVertex(vtx, max(MIN_VERTEX_TOLERANCE, VERTEX_SLACK * float(gap)))
         vertices.append(vtx)
     edges = []
     for e in range(network.n_edges):

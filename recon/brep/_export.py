@@ -142,6 +142,7 @@ def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "rec
             if not BRepTools.Write_s(occ, str(tmp)):
                 raise ExportError(f"cannot write {path}: BRepTools.Write failed")
         else:
+            # angular deflection 0.3 rad: OCC's usual tessellation angle (scale-free)
             mesher = BRepMesh_IncrementalMesh(occ, float(deflection), False, 0.3, True)
             if not mesher.IsDone():
                 raise ExportError(f"cannot write {path}: tessellation failed")

@@ -196,6 +196,7 @@ def face_on_copies(model: SurfaceModel, loops: list[np.ndarray], network: CurveN
     vertices = {}
     for v in ends:
         vtx = BRepBuilderAPI_MakeVertex(pnt(geo.points[v])).Vertex()
+        # 1% beyond the vertex's measured gap (scales with the gap): rounding never leaves it short
         builder.UpdateVertex(vtx, max(MIN_VERTEX_TOLERANCE, 1.01 * float(geo.vertex_gap[v])))
         vertices[v] = vtx
     copies = [None] * network.n_edges
@@ -304,6 +305,7 @@ def own_curves_face(model: SurfaceModel, loops: list[np.ndarray], geo: NetworkGe
         builder = BRep_Builder()
         wires = []
         for loop in (loops if vote > 0 else [-r[::-1] for r in loops]):
+            # a thousandth of the face precision (scales with tolerance): the UV loop is finer than the fit
             uvs = _uv_loop(analysis, loop, geo, 1e-3 * precision)
             wire = TopoDS_Wire()
             builder.MakeWire(wire)
@@ -319,6 +321,7 @@ def own_curves_face(model: SurfaceModel, loops: list[np.ndarray], geo: NetworkGe
                 if not mk.IsDone():
                     raise BrepError(f"BRepBuilderAPI_MakeEdge on the surface failed ({mk.Error()})")
                 edge = mk.Edge()
+                # a thousandth of the face precision (scales with tolerance), as the UV loop above
                 BRepLib.BuildCurves3d_s(edge, 1e-3 * precision)
                 builder.Add(wire, edge)
                 vtx = end

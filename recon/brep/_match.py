@@ -65,6 +65,7 @@ def _face_boxes(faces) -> np.ndarray:
         out[i] = (-np.inf,) * 3 + (np.inf,) * 3 if box.IsVoid() or box.IsOpen() else box.Get()
     finite = np.all(np.isfinite(out), axis=1)
     if finite.any():
+        # box margin: a thousandth of the boxes' diagonal (scales with part size)
         margin = 1e-3 * float(np.linalg.norm(out[finite, 3:].max(axis=0) - out[finite, :3].min(axis=0)))
         out[:, :3] -= margin
         out[:, 3:] += margin

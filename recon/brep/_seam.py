@@ -11,6 +11,7 @@ from OCP.TopAbs import TopAbs_REVERSED
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS_Wire
 
+from .._array import helper_axis
 from ..network import NetworkGeometry
 from ..errors import BrepError
 from ._edges import pnt, vec3
@@ -31,7 +32,7 @@ def _winding(model: SurfaceModel, pts: np.ndarray) -> float:
     """How many times the closed polyline ``pts`` winds round ``model``'s axis."""
     rel = pts - model.origin
     d = _unit_np(model.axis)
-    x = _unit_np(np.cross(d, [1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.cross(d, [0.0, 1.0, 0.0]))
+    x = _unit_np(np.cross(d, helper_axis(d)))
     y = np.cross(d, x)
     ang = np.unwrap(np.arctan2(rel @ y, rel @ x))
     return float((ang[-1] - ang[0]) / (2 * np.pi))
@@ -58,6 +59,7 @@ def seam_split(model: SurfaceModel, loops: list[np.ndarray], edges, geo: Network
 
     if model is None or model.kind not in SEAM_SURFACES or len(loops) != 2:
         return None
+    # a loop winds once about the axis within 5% of a turn (scale-free: sampled loops miss a little)
     if not all(abs(abs(_winding(model, _loop_points(l, geo))) - 1.0) < 0.05 for l in loops):
         return None
     d = _unit_np(model.axis)

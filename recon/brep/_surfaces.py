@@ -30,6 +30,7 @@ from OCP.gp import gp_Ax3, gp_Dir, gp_Pnt
 from OCP.TColgp import TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
+from .._array import helper_axis
 from ..errors import BrepError, InputError
 from ..fit import Cone, Cylinder, Plane, Sphere, SurfaceKind, Torus
 
@@ -63,8 +64,7 @@ def _unit(v) -> np.ndarray:
 
 
 def _perp(d) -> np.ndarray:
-    a = np.array([1.0, 0, 0]) if abs(d[0]) < 0.9 else np.array([0, 1.0, 0])
-    return _unit(np.cross(d, a))
+    return _unit(np.cross(d, helper_axis(d)))
 
 
 def _ax3(origin, axis, xdir=None) -> gp_Ax3:

@@ -151,6 +151,7 @@ def decompose(
     if (labels < 0).any():  # cannot happen by construction; fail loudly rather than emit -1 labels
         raise DecompositionError(f"{int((labels < 0).sum())} triangles were left without a part")
 
+    # progress share done when the curves start (report only)
     step("curves", 0.9)
     curves, neighbours = bc if bc is not None else boundary_curves(V, topo, labels, len(kinds))
     parts = _parts(labels, kinds, sharp, neighbours, geom.area)
@@ -559,6 +560,7 @@ def _local_geodesic(graph: sp.csr_matrix, V, a: int, b: int, s: float, tree: cKD
     if tree is None:
         idx = np.flatnonzero(np.einsum("ij,ij->i", V - centre, V - centre) <= radius * radius)
     else:
+        # radius grown by a relative 1e-6 so points at the radius itself are included (round-off, scale-free)
         cand = np.sort(np.asarray(tree.query_ball_point(centre, radius * (1.0 + 1e-6) + 1e-12), dtype=np.int64))
         w = V[cand] - centre
         idx = cand[np.einsum("ij,ij->i", w, w) <= radius * radius]
@@ -625,6 +627,7 @@ def _absorb_orphans(comp, kind, pairs, topo, V, patch):
             sel = np.isin(a_l, list(orphans)) & (a_l != b_l)
             # neighbour code: critical part c ≥ 0 (preferred: weight + 1e9) or patch p → -(p + 2)
             nb = np.where(b_l >= 0, b_l, -(b_p + 2))
+            # a weight larger than any edge length sum: critical parts always win over patches (an order, not a tuning)
             wgt = elen + np.where((b_l >= 0) & ~np.isin(b_l, list(orphans)), 1e9, 0.0)
             for o, nbr, w in zip(a_l[sel].tolist(), nb[sel].tolist(), wgt[sel].tolist()):
                 if nbr >= 0 and nbr in orphans:
@@ -670,6 +673,7 @@ def _middle_share(V, F, labels, area, n_parts, nrm=None, only=None):
         t = nrm[idx] @ axis
         o = np.argsort(t)
         cw = np.cumsum(w[o])
+        # 5%/95% weighted quantiles: the spread of normals without its outlying tails (scale-free)
         lo, hi = t[o][np.searchsorted(cw, 0.05)], t[o][min(np.searchsorted(cw, 0.95), len(o) - 1)]
         a, b = lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo)
         out[p] = float(w[(t >= a) & (t <= b)].sum())

@@ -31,6 +31,7 @@ class _Ctx:
         self.V, self.F, self.adj, self.pairs, self.edges = V, F, adj, pairs, edges
         self.fn, self.vn = fnormal, vnormal
         self.tol, self.cos = tol, float(np.cos(angle))
+        # a hundred-thousandth of the diagonal: round-off margin (scales with part size)
         self.eps = 1e-5 * diag
         # (m, 3, 3) corner coordinates: one gather per distance test instead of two; the centroids are their
         # mean (by columns: the same sums, in order, divided by 3)
@@ -186,6 +187,7 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     if not res:
         return ctx.tol
     r = np.concatenate(res)
+    # MAD to sigma of a normal distribution (a statistical constant)
     sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
     log.info("noise from fitted faces: sigma %.4g (first estimate %.4g)", sigma, noise)
     return tolerance_for(sigma, diag, floor=TOL_FLOOR)

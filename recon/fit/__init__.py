@@ -1,13 +1,14 @@
 """Surface and curve fitting (numpy/scipy only; ``recon.brep`` turns the parameters into OpenCascade objects)."""
 
-from ._curves import fit_bspline_curve, fit_circle, fit_curve, fit_line
+from ._curves import fit_bspline_curve, fit_circle, fit_curve, fit_edge_curve, fit_line, point_curve, polyline_curve
 from ._noise import default_tolerance, estimate_normals, noise_sigma
 from ._blend import fit_rolling_ball, ruled_surface
 from ._bspline import fit_bspline_surface
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ._select import ANALYTIC_FITTERS, MISFIT_SCALE, fit_surface, residual_scale
 from ._quickfit import quick_fit, surface_normals
-from ._geometry import BSplineCurve, BSplineSurface, Circle, Cone, Cylinder, Line, Plane, Sphere, SurfaceKind, Torus
+from ._geometry import (BSplineCurve, BSplineSurface, Circle, Cone, CurveKind, Cylinder, EdgeCurve, Line, Plane, Sphere,
+                        SurfaceKind, Torus)
 from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats,
                      within_tolerance)
 
@@ -23,6 +24,8 @@ __all__ = [
     "Line",
     "Cone",
     "CurveFit",
+    "CurveKind",
+    "EdgeCurve",
     "Cylinder",
     "Plane",
     "Sphere",
@@ -36,6 +39,7 @@ __all__ = [
     "fit_bspline_surface",
     "fit_circle",
     "fit_curve",
+    "fit_edge_curve",
     "fit_line",
     "fit_cone",
     "fit_cylinder",
@@ -45,6 +49,8 @@ __all__ = [
     "fit_torus",
     "fit_rolling_ball",
     "noise_sigma",
+    "point_curve",
+    "polyline_curve",
     "quick_fit",
     "residual_scale",
     "ruled_surface",

@@ -142,6 +142,7 @@ def fit_rolling_ball(
         t = pts @ vec[:, 2]
         span = t.max() - t.min()
         bins = int(np.clip(len(pts) // 40, 2, 50))
+        # bins reach 2% of the span beyond the ends so the end points fall inside (scales with the span)
         edges = np.linspace(t.min() - 0.02 * span, t.max() + 0.02 * span, bins + 1)
         on_a = da < db
         left = _boundary_polyline(pts[on_a], da[on_a], t[on_a], edges)

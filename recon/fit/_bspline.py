@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-from .._array import as_points
+from .._array import as_points, helper_axis
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface, basis_functions, clamped_knots, periodic_knots
 from ._noise import estimate_normals
@@ -161,7 +161,7 @@ def _cylindrical(points: np.ndarray, faces: np.ndarray):
     if np.linalg.norm(axis) < 1e-9 * np.ptp(points, axis=0).max():
         return None, None  # two loops around one centre (a washer, a torus cut once): no axis to wrap around
     axis /= np.linalg.norm(axis)
-    ex = np.cross(axis, [1.0, 0, 0] if abs(axis[0]) < 0.9 else [0, 1.0, 0])
+    ex = np.cross(axis, helper_axis(axis))
     ex /= np.linalg.norm(ex)
     ey = np.cross(axis, ex)
     q = points - c0
@@ -381,6 +381,7 @@ def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, interva
                       max_intervals, per_control: float = POINTS_PER_CONTROL) -> SurfaceFit:
     """Steps 2–5 of the module notes on one initial parametrisation ``uv`` (n, 2)."""
     lo, hi = uv.min(axis=0), uv.max(axis=0)
+    # UV box grown by 5% of its extent so the surface covers its boundary points (scales with the patch)
     margin = 0.05 * (hi - lo)
     box = np.column_stack([lo - margin, hi + margin])
     extent = hi - lo
@@ -398,6 +399,7 @@ def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, interva
             return max(degree + 2, round(c * aspect[0])) * (max(2, round(c * aspect[1])) + degree)
 
         cap = max([c for c in range(3, max_intervals + 1) if controls(c) <= len(pts) / per_control], default=3)
+    # about 40 points per knot span by default: noise averages out (tuned: see POINTS_PER_CONTROL)
     k = intervals or max(3, int(round(np.sqrt(len(pts) / 40.0))))
     k = min(k, cap)
     while True:

@@ -17,12 +17,12 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.spatial import cKDTree
 
-from .._array import row_norms, unit
+from .._array import helper_axis, row_norms, unit
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface
 
 __all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "SurfaceKind", "surface_from_params",
-           "Line", "Circle", "BSplineCurve", "curve_from_params", "Surface", "Curve"]
+           "Line", "Circle", "BSplineCurve", "curve_from_params", "Surface", "Curve", "CurveKind", "EdgeCurve"]
 
 
 class SurfaceKind(StrEnum):
@@ -44,8 +44,7 @@ class SurfaceKind(StrEnum):
 
 def _perp(d: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to ``d``: the radial direction a point on an axis is given."""
-    a = np.array([1.0, 0, 0]) if abs(d[0]) < 0.9 else np.array([0, 1.0, 0])
-    return unit(np.cross(d, a))
+    return unit(np.cross(d, helper_axis(d)))
 
 
 def _axis_frame(x: np.ndarray, origin: np.ndarray, d: np.ndarray, perp: np.ndarray):
@@ -322,3 +321,47 @@ def curve_from_params(kind: str, params: dict) -> Curve:
     if kind == "bspline":
         return BSplineCurve(int(a["degree"]), a["knots"], a["control_points"])
     raise FitError(f"unknown curve type {kind!r}")
+
+
+class CurveKind(StrEnum):
+    """A curve's type (a value equals its report name, ``CurveKind.LINE == "line"``)."""
+
+    LINE = "line"
+    CIRCLE = "circle"
+    BSPLINE = "bspline"
+
+
+@dataclass(frozen=True, eq=False)
+class EdgeCurve:
+    """A B-rep edge's curve from ``start`` to ``end`` (its two network vertices, or one twice on a closed edge).
+
+    A :attr:`~CurveKind.LINE` is the segment between the ends; a :attr:`~CurveKind.CIRCLE` the arc of ``circle``
+    counter-clockwise about its normal from angle ``t0`` to ``t1`` (from its ``x_dir``); a
+    :attr:`~CurveKind.BSPLINE` the clamped ``spline`` over [0, 1], whose end control points are the ends.
+    ``residual`` is the largest distance of the edge's points to the curve (inf: not fitted).
+    """
+
+    kind: CurveKind
+    start: np.ndarray
+    end: np.ndarray
+    residual: float
+    circle: Circle | None = None
+    t0: float = 0.0
+    t1: float = 0.0
+    spline: BSplineCurve | None = None
+
+    @classmethod
+    def line(cls, start: np.ndarray, end: np.ndarray, residual: float) -> EdgeCurve:
+        return cls(CurveKind.LINE, np.array(start, float), np.array(end, float), float(residual))
+
+    @classmethod
+    def arc(cls, circle: Circle, start: np.ndarray, end: np.ndarray, t0: float, t1: float,
+            residual: float) -> EdgeCurve:
+        return cls(CurveKind.CIRCLE, np.array(start, float), np.array(end, float), float(residual), circle=circle,
+                   t0=float(t0), t1=float(t1))
+
+    @classmethod
+    def bspline(cls, degree: int, knots: np.ndarray, control_points: np.ndarray, residual: float) -> EdgeCurve:
+        ctrl = np.asarray(control_points, float)
+        return cls(CurveKind.BSPLINE, ctrl[0].copy(), ctrl[-1].copy(), float(residual),
+                   spline=BSplineCurve(int(degree), np.asarray(knots, float), ctrl))

@@ -31,7 +31,7 @@ from ._noise import estimate_normals
 from ._trf import trf_soft_l1
 from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
-from ._types import SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
+from ._types import HUGE, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
 
@@ -39,8 +39,6 @@ log = logging.getLogger(__name__)
 
 #: Larger inputs are fitted on an evenly strided subset of this many points (deviations use all points).
 MAX_FIT_POINTS = 2000
-#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
-_HUGE = 1e3
 #: The first refinement pass runs on about this many points (see ``_refine``).
 COARSE_POINTS = 400
 #: Evaluation budget per refinement pass: from its closed-form start the right type converged in ≤ 14
@@ -132,6 +130,7 @@ def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
         if not scale > 0:
             raise FitError(f"`scale` must be > 0, got {scale}")
         return float(scale)
+    # MAD to sigma of a normal distribution (a statistical constant)
     mad = 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
     return max(mad, 1e-9 * size)
 
@@ -152,6 +151,7 @@ def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
     """
     if tolerance is not None:
         return float(tolerance)
+    # 4 sigma of the residuals (MAD × 1.4826) when no tolerance is given (scales with noise sigma)
     return 4.0 * 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
 
 
@@ -264,7 +264,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     a = _columns(2 * q, np.ones(len(q)))
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
     c0, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
-    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > _HUGE * size:
+    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > HUGE * size:
         return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
 
     def fun(x, q):
@@ -278,7 +278,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
-    if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"center": _vec(center), "radius": radius}
     return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
@@ -310,7 +310,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     d0 = vec[:, 0]
     e1, e2 = perpendicular_frame(d0)
     circle = _circle_2d(_columns(q @ e1, q @ e2))
-    if circle is None or circle[1] > _HUGE * size:
+    if circle is None or circle[1] > HUGE * size:
         return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
     c0 = circle[0][0] * e1 + circle[0][1] * e2
 
@@ -333,7 +333,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
     radius = abs(float(res.x[4]))
-    if radius > _HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
     return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
@@ -400,7 +400,7 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
     if alpha > np.pi / 2 - _MIN_ANGLE:
         return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: a plane)")
     apex = c - (radius / np.tan(alpha)) * d
-    if np.linalg.norm(apex) > _HUGE * size:
+    if np.linalg.norm(apex) > HUGE * size:
         return _failed("cone", len(pts), "degenerate (apex at infinity: a cylinder)")
     if np.median((q - apex) @ d) < 0 or radius < 0:
         return _failed("cone", len(pts), "degenerate (the points straddle the apex)")
@@ -431,9 +431,10 @@ def _cone_start(q: np.ndarray, nrm: np.ndarray, size: float):
     m = nrm.T @ nrm
     evals, vec = np.linalg.eigh(m)
     apex = None
+    # eigenvalue ratio below 1e-6: the normals are coplanar, a cylinder, no apex (scale-free)
     if evals[0] > 1e-6 * evals[-1]:
         apex = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
-        if np.linalg.norm(apex) > _HUGE * size:
+        if np.linalg.norm(apex) > HUGE * size:
             apex = None
     if apex is not None:
         u = q - apex
@@ -475,6 +476,7 @@ def _revolution_axis(q: np.ndarray, nrm: np.ndarray) -> tuple[np.ndarray, np.nda
     _, vec = np.linalg.eigh(a.T @ a)
     d, mom = vec[:3, 0], vec[3:, 0]
     nd = np.linalg.norm(d)
+    # a direction shorter than 1e-6 of a unit one is no direction (round-off, scale-free)
     if nd < 1e-6:
         return None
     d, mom = d / nd, mom / nd
@@ -512,7 +514,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0, d0 = axis
     h, rho = _rho_z(q, c0, d0)
     circle = _circle_2d(_columns(rho, h))
-    if circle is None or circle[1] > _HUGE * size:
+    if circle is None or circle[1] > HUGE * size:
         return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
     (r_major0, z0), r_minor0 = circle
     c0 = c0 + z0 * d0
@@ -538,11 +540,12 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     center = c0 + res.x[2:5] + mean
     big, small = float(res.x[5]), float(res.x[6])
     limit = _limit_tolerance(tolerance, res.fun)
+    # a major radius below a thousandth of the patch is no torus (scales with part size)
     if big < max(1e-3 * size, limit):
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
-    if big > _HUGE * size or size**2 / (8 * big) < limit:
+    if big > HUGE * size or size**2 / (8 * big) < limit:
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
-    if small <= 0 or small > _HUGE * size:
+    if small <= 0 or small > HUGE * size:
         return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")
     if big < small:
         return _failed("torus", len(pts), f"spindle torus (major {big:.3g} < minor {small:.3g}) is not supported")

@@ -28,7 +28,7 @@ import numpy as np
 from .._array import axis_helper, col_means, columns as _columns, cross3, extent, row_norms, row_sums
 from ..errors import FitError
 from ._select import ANALYTIC_FITTERS
-from ._types import SurfaceFit, deviation_stats, percentile as _percentile, within_tolerance
+from ._types import HUGE, SurfaceFit, deviation_stats, percentile as _percentile, within_tolerance
 
 __all__ = ["quick_fit", "surface_normals", "closed_form"]
 
@@ -37,8 +37,6 @@ __all__ = ["quick_fit", "surface_normals", "closed_form"]
 NEAR = {"plane": 3.0, "sphere": 3.0, "cylinder": 3.0, "cone": 3.0, "torus": 3.0}
 #: Gauss–Newton steps polishing the sphere's and the cylinder's closed form.
 GN_STEPS = 2
-#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane (or a cylinder).
-HUGE = 1e3
 
 
 def _unit_rows(v: np.ndarray) -> np.ndarray:
@@ -137,6 +135,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
     if kind == "cone":
         m = nrm.T @ nrm
         ev = np.linalg.eigvalsh(m)
+        # eigenvalue ratio below 1e-6: the normals are coplanar, a cylinder, no apex (scale-free)
         if not ev[0] > 1e-6 * ev[-1]:
             return None
         apex = np.linalg.solve(m, np.einsum("ij,ij->i", nrm, q) @ nrm)
@@ -164,6 +163,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         vec = np.linalg.eigh(a.T @ a)[1][:, 0]
         d, mom = vec[:3], vec[3:]
         nd = np.linalg.norm(d)
+        # a direction shorter than 1e-6 of a unit one is no direction (round-off, scale-free)
         if nd < 1e-6:
             return None
         d, mom = d / nd, mom / nd
@@ -176,6 +176,7 @@ def closed_form(kind: str, pts: np.ndarray, nrm: np.ndarray, tol: float) -> dict
         if c is None:
             return None
         (big, z0), small = c
+        # a major radius below a thousandth of the patch is no torus (scales with part size)
         if big < max(1e-3 * size, tol) or big > HUGE * size or size * size / (8 * big) < tol:
             return None
         if small <= 0 or small > HUGE * size or big < small:

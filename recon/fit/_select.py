@@ -216,8 +216,8 @@ def _hugging_chords(first: SurfaceFit, pts, normals, faces, *, tolerance: float,
     two circles (there is one whenever they have the same radius) holds every vertex exactly, yet bows away
     from every strip's long edge by about ``h² / 8r``. So the chords decide: a later type within tolerance at
     the vertices replaces ``first`` when the RMS distance at the edge midpoints falls to :data:`CHORD_GAIN` of
-    ``first``'s or less, once ``first``'s is at least :data:`CHORD_FLOOR` tolerances (the ABC model: a
-    sphere's chords at 0.78 tolerances, the cylinder's at 0.07). A plane holds its chords exactly: it stands.
+    ``first``'s or less, once ``first``'s is at least :data:`CHORD_FLOOR` tolerances (the measurement behind both:
+    bench/constants.md). A plane holds its chords exactly: it stands.
     """
     if first.type == "plane":
         return first

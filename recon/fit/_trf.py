@@ -90,6 +90,7 @@ def _solve_lsq_trust_region(n, m, uf, s, V, Delta, initial_alpha, rtol=0.01, max
         alpha_lower = 0.0
 
     if initial_alpha is None or not full_rank and initial_alpha == 0:
+        # scipy's trust-region constants (lsq_linear / trf, Moré 1983): kept as scipy has them
         alpha = max(0.001 * alpha_upper, (alpha_lower * alpha_upper) ** 0.5)
     else:
         alpha = initial_alpha
@@ -97,6 +98,7 @@ def _solve_lsq_trust_region(n, m, uf, s, V, Delta, initial_alpha, rtol=0.01, max
     s2 = s**2
     for _ in range(max_iter):
         if alpha < alpha_lower or alpha > alpha_upper:
+            # scipy's trust-region constants, as above
             alpha = max(0.001 * alpha_upper, (alpha_lower * alpha_upper) ** 0.5)
 
         denom = s2 + alpha
@@ -173,6 +175,7 @@ def _tr_radius(Delta: float, actual_reduction, predicted_reduction, step_h_norm:
         ratio = 0
     if ratio < 0.25:
         return 0.25 * step_h_norm, ratio
+    # scipy's trust-region radius update (step within 5% of the radius): kept as scipy has it
     if ratio > 0.75 and step_h_norm > 0.95 * Delta:
         return Delta * 2.0, ratio
     return Delta, ratio

@@ -15,6 +15,10 @@ import numpy as np
 
 from ._geometry import Curve, Surface, curve_from_params, surface_from_params
 
+#: A radius (or apex distance) beyond this many patch diagonals is numerically a plane, line or cylinder
+#: (scales with the part's size: its sagitta is below round-off there).
+HUGE = 1e3
+
 __all__ = ["SurfaceFit", "CurveFit", "SURFACE_TYPES", "CURVE_TYPES", "deviation_stats", "within_tolerance"]
 
 #: Surface types in the order :func:`recon.fit.fit_surface` tries them (simplest first, see there).

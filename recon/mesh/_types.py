@@ -213,6 +213,7 @@ class Mesh:
     def volume(self) -> float:
         """Signed enclosed volume (divergence theorem); meaningful where components are closed."""
         v = self.vertices[self.faces] - self.vertices.mean(axis=0)
+        # a tetrahedron's volume is a sixth of its triple product (geometry)
         return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum() / 6.0)
 
     # -- edges and adjacency --------------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The curve network placed on its fitted surfaces.
 
 Vertices go to the least-squares meeting point of their surfaces, edge polylines onto the intersection of their
-two surfaces (refined where a chord strays from it), and each edge is fitted (:mod:`recon.network._edge_fit`).
+two surfaces (refined where a chord strays from it), and each edge is fitted (:func:`recon.fit.fit_edge_curve`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 from .._parallel import shared_map
 from ..errors import InputError
-from ._edge_fit import EdgeCurve, fit_edge_curve, polyline_curve
+from ..fit import EdgeCurve, fit_edge_curve, point_curve, polyline_curve
 from ._graph import OUTSIDE, CurveNetwork
 
 __all__ = ["NetworkGeometry", "Projector", "meeting_point", "network_geometry"]
@@ -282,7 +282,7 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
             curve = fit_curve(pts, closed=bool(closed), tolerance=tolerance)
         except InputError as err:  # a degenerate edge (all its points coincide): the B-rep reports it
             notes.append(f"network_geometry: edge {e}: {err}")
-            return pts, gap, EdgeCurve("line", {"start": pts[0].copy(), "end": pts[-1].copy()}, float("inf")), notes
+            return pts, gap, point_curve(pts), notes
         if trusted and _strays(curve, pts, int(left), int(right), project, tolerance):
             notes.append(f"network_geometry: edge {e}: its smooth curve strays from its points and their surfaces: "
                          "the polyline is the edge")
@@ -337,14 +337,13 @@ def _strays(curve: EdgeCurve, pts, left: int, right: int, project: Projector, to
     (``refine``): a B-spline out of tolerance lies far off its edges' points, and fillings bounded by such
     polylines reach farther from the mesh. The measurements behind each case are in bench/evidence.md.
     """
-    if curve.kind != "bspline" or int(curve.params["degree"]) < 2 or len(pts) < 3:
+    if curve.spline is None or curve.spline.degree < 2 or len(pts) < 3:
         return False
     from scipy.interpolate import BSpline
     from scipy.spatial import cKDTree
 
     n = min(STRAY_SAMPLES, 4 * (len(pts) - 1) + 1)
-    spline = BSpline(np.asarray(curve.params["knots"]), np.asarray(curve.params["control_points"]),
-                     int(curve.params["degree"]))
+    spline = BSpline(curve.spline.knots, curve.spline.control_points, curve.spline.degree)
     on_curve = spline(np.linspace(0.0, 1.0, n))
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
     along = np.linspace(0.0, s[-1], 8 * n)

@@ -94,7 +94,7 @@ def split_unfitted(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.nd
         new = list(range(base, base + len(found)))
         pieces = fit_parts(trial, ctx, only=new)
         # (on a noise-free mesh a piece within tolerance, its edges included, is a face even as a B-spline:
-        # the ABC model's thin shim edge, four arcs, fits nothing whole)
+        # a thin part bounded by four arcs fits nothing whole; its evidence is in bench/constants.md)
         if not all(pieces[q].ok and (pieces[q].type in ANALYTIC or noise_free and not fit.ok) for q in new):
             continue
         log.info("part %d fits no surface: split into %d (%s)", p, len(new), ", ".join(pieces[q].type for q in new))

@@ -305,6 +305,7 @@ def _raster_mask(path: Path) -> np.ndarray:
     if arr.shape[2] == 4 and arr[..., 3].min() != arr[..., 3].max():
         return arr[..., 3] > 0.5 * full
     rgb = arr[..., :3].astype(np.float64)
+    # Rec. 709 luminance weights (a standard)
     luminance = rgb @ np.array([0.2126, 0.7152, 0.0722])
     return luminance > 0.5 * full
 
@@ -354,6 +355,7 @@ def _svg_curves(path: Path) -> list:
             if isinstance(s, (se.Line, se.Close)):
                 pts.append([[s.start.x, s.start.y]])
                 continue
+            # SVG path length accuracy in drawing units: far below the sampling step
             n = max(8, int(np.ceil(s.length(error=1e-6) / step)))
             t = np.linspace(0.0, 1.0, n, endpoint=False)
             pts.append(np.asarray(s.npoint(t), dtype=np.float64))
