@@ -433,12 +433,14 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
                                                nodes=False)
     pts, pts_face = np.vstack([nodes, area_pts]), np.concatenate([nodes_face, area_face])
     back, exact = mesh_distance(v, f, pts)
+    if not len(pts):
+        notes.append("shape → mesh: no face of the shape could be triangulated, so nothing was measured")
     if not exact.all():
         notes.append(f"shape → mesh: {int((~exact).sum())} of {len(pts)} B-rep samples lie far from the mesh; "
                      "their distance is an upper bound")
     for note in notes:
         log.warning("deviation: %s", note)
-    log.info("shape → mesh: %d samples, max %.4g", len(pts), back.max())
+    log.info("shape → mesh: %d samples, max %.4g", len(pts), back.max() if back.size else np.nan)
 
     faces = []
     for i, (name, kind) in enumerate(zip(names, brep.types)):

@@ -451,3 +451,12 @@ def test_signed_distance_defers_boundary_normals_without_changing_a_bit(monkeypa
     for got, want in zip(deferred, brep.signed_distance(p)):
         np.testing.assert_array_equal(got, want)
     assert (np.sign(deferred[0]) < 0).any() and (np.sign(deferred[0]) > 0).any()
+
+
+def test_surface_samples_of_faces_without_triangles_are_empty():
+    """A result whose faces all failed to triangulate has nothing to sample: empty arrays, not a crash (an export
+    part once ended recon with exit 3 here instead of exit 1 with its verdict)."""
+    brep = BrepDistance(bd.Box(10, 10, 10).wrapped)
+    brep._faces = []  # what BrepDistance holds when no face could be triangulated or sampled
+    points, face = brep.surface_samples(100)
+    assert points.shape == (0, 3) and face.shape == (0,) and face.dtype == np.int64

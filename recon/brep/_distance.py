@@ -645,6 +645,8 @@ class BrepDistance:
                 _, on, _, _ = self._face_query_deferred(fd.index, p, uv0=uv)  # the feet only
                 pts.append(on)
                 fid.append(np.full(len(on), fd.index))
+        if not pts:  # no face could be triangulated: nothing to sample, which the caller must report
+            return np.empty((0, 3)), np.empty(0, dtype=np.int64)
         return np.vstack(pts), np.concatenate(fid).astype(np.int64)
 
 
