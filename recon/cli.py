@@ -53,6 +53,16 @@ def _verbosity(parser: argparse.ArgumentParser) -> None:
                        help="print errors only (default: off)")
 
 
+def _version() -> str:
+    """The installed distribution's version (pyproject's), which is what a bug report needs."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("recon")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="recon",
@@ -60,6 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         "by the Voronoi skeleton decomposition of Wekel & Hellwich.",
         epilog=_EPILOG,
     )
+    parser.add_argument("--version", action="version", version=f"recon {_version()}")
     _verbosity(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:

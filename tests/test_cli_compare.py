@@ -63,3 +63,18 @@ def test_bad_input_exit_2_one_line_no_output(tmp_path, sphere_files, capsys, bro
     assert code == 2
     assert err.startswith("recon compare: error:") and "\n" not in err
     assert not out.exists() and not png.exists()
+
+
+def test_version_and_help_read_as_printed(capsys):
+    """`recon --version` names the installed version (exit 0, on stdout); `compare --help` shows "%", not the
+    "%%" argparse needs only inside an option's help."""
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.strip() == f"recon {version('recon')}"
+    with pytest.raises(SystemExit):
+        main(["compare", "--help"])
+    out = capsys.readouterr().out
+    assert "% of the mesh" in out and "%%" not in out

@@ -16,7 +16,7 @@ def add_parser(sub):
         help="distances from a mesh to a B-rep (STEP) and back, per face",
         description="Deviation analysis: exact signed distances from the mesh vertices to the B-rep "
         "faces (positive outside) and from samples of the B-rep to the mesh; max, p95, RMS, mean in "
-        "model units and %% of the mesh's bounding-box diagonal, overall and per face.",
+        "model units and % of the mesh's bounding-box diagonal, overall and per face.",
     )
     p.add_argument("mesh", help="triangle mesh (STL, OBJ, PLY, OFF, 3MF, GLB)")
     p.add_argument("shape", help="B-rep as a STEP file")
