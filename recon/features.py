@@ -356,6 +356,7 @@ def _hinge_noise(vertices, faces, geom: FaceGeometry | None = None, pairs=None) 
     diag = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
     if np.mean(h <= EXACT_HINGE * diag) >= EXACT_SHARE:
         return 0.0
+    # 0.3186 = Φ⁻¹(0.625), the lower quartile of |N(0, 1)|: the quartile read in units of σ
     return float(np.percentile(h, 25) / 0.3186 / 2.0)
 
 

@@ -385,7 +385,7 @@ def _deviation_rules(report: dict, sag: np.ndarray, area: np.ndarray, labels: np
         return [Rule(name, False if error else None, None, None, (), why) for name in _DEVIATION_RULES]
     k, T = MAX_PER_TOLERANCE, tolerance
     m2s, s2m = dev["mesh_to_shape"], dev["shape_to_mesh"]
-    sag95 = _weighted_percentile(sag, area, 95.0)
+    sag95 = _weighted_percentile(sag, area, 95.0)  # the p95, as every other deviation rule judges
     rules = [_limit_rule("mesh_to_shape_p95", m2s.get("p95"), T, "mesh→shape p95"),
              _limit_rule("mesh_to_shape_max", m2s.get("max"), k * T, "mesh→shape max"),
              _limit_rule("shape_to_mesh_p95", s2m.get("p95"), T + sag95, "shape→mesh p95")]

@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 
 from .._tolerance import tolerance_for
 from ..errors import FitError
-from .._array import as_points
+from .._array import HELPER_COS, as_points
 
 __all__ = ["estimate_normals", "noise_sigma", "default_tolerance"]
 
@@ -80,7 +80,7 @@ def noise_sigma(points: npt.ArrayLike, normals: npt.ArrayLike | None = None, *, 
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
         nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
-        helper = np.where(np.abs(nrm[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
+        helper = np.where(np.abs(nrm[:, :1]) < HELPER_COS, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
         t1 = np.cross(nrm, helper)
         t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
         frame = np.stack([t1, np.cross(nrm, t1), nrm], axis=2)
