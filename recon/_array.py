@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["HELPER_COS", "as_points", "axis_helper", "helper_axis",
+__all__ = ["HELPER_COS", "as_points", "axis_helper", "x_or_y_helper",
            "col_means", "col_sums", "columns", "cross3", "extent", "perpendicular_frame",
            "row_norms", "row_sums", "unique_inverse", "unit"]
 
@@ -117,9 +117,10 @@ def columns(*cols) -> np.ndarray:
 HELPER_COS = 0.9
 
 
-def helper_axis(d) -> np.ndarray:
+def x_or_y_helper(d) -> np.ndarray:
     """The x axis, or the y axis where ``d`` (unit) lies within 25.8° of x: a vector ``d × helper`` is well
-    conditioned for."""
+    conditioned for. Not :func:`axis_helper` (the least aligned axis): the frames that use this one — and so
+    every fit and face built on them — would change at the last bit."""
     return np.array([1.0, 0.0, 0.0]) if abs(d[0]) < HELPER_COS else np.array([0.0, 1.0, 0.0])
 
 

@@ -11,7 +11,7 @@ from OCP.TopAbs import TopAbs_REVERSED
 from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS_Wire
 
-from .._array import helper_axis
+from .._array import x_or_y_helper
 from ..network import NetworkGeometry
 from ..errors import BrepError
 from ._edges import pnt, vec3
@@ -32,7 +32,7 @@ def _winding(model: SurfaceModel, pts: np.ndarray) -> float:
     """How many times the closed polyline ``pts`` winds round ``model``'s axis."""
     rel = pts - model.origin
     d = _unit_np(model.axis)
-    x = _unit_np(np.cross(d, helper_axis(d)))
+    x = _unit_np(np.cross(d, x_or_y_helper(d)))
     y = np.cross(d, x)
     ang = np.unwrap(np.arctan2(rel @ y, rel @ x))
     return float((ang[-1] - ang[0]) / (2 * np.pi))

@@ -30,7 +30,7 @@ from OCP.gp import gp_Ax3, gp_Dir, gp_Pnt
 from OCP.TColgp import TColgp_Array2OfPnt
 from OCP.TColStd import TColStd_Array1OfInteger, TColStd_Array1OfReal
 
-from .._array import helper_axis
+from .._array import x_or_y_helper
 from ..errors import BrepError, InputError
 from ..fit import Cone, Cylinder, Plane, Sphere, SurfaceKind, Torus
 
@@ -64,7 +64,7 @@ def _unit(v) -> np.ndarray:
 
 
 def _perp(d) -> np.ndarray:
-    return _unit(np.cross(d, helper_axis(d)))
+    return _unit(np.cross(d, x_or_y_helper(d)))
 
 
 def _ax3(origin, axis, xdir=None) -> gp_Ax3:

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from .._array import helper_axis, row_norms
+from .._array import x_or_y_helper, row_norms
 from ..fit import SurfaceFit, surface_normals
 from ._regionfit import _accept, _Ctx, _normals_at
 from ._topology import unique
@@ -64,7 +64,7 @@ def _turn(ctx: _Ctx, fit: SurfaceFit, faces: np.ndarray) -> float:
     """The angle (radians) a region covers about its cylinder's axis: a full turn less its widest gap."""
     d = np.asarray(fit.params["axis_dir"], float)
     q = ctx.centroid[faces] - np.asarray(fit.params["axis_point"], float)
-    u = np.cross(d, helper_axis(d))
+    u = np.cross(d, x_or_y_helper(d))
     u /= np.linalg.norm(u)
     w = np.cross(d, u)
     ang = np.sort(np.arctan2(q @ w, q @ u))

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._array import row_norms, row_sums, unique_inverse
 from .._tolerance import MESH_FLOOR, tolerance_for
-from ..fit import ANALYTIC_FITTERS, SurfaceFit, quick_fit, surface_normals
+from ..fit import ANALYTIC_FITTERS, MAD_TO_SIGMA, SurfaceFit, quick_fit, surface_normals
 
 log = logging.getLogger(__name__)
 
@@ -187,8 +187,7 @@ def _noise_tolerance(ctx: _Ctx, comp_faces: list, noise: float, diag: float) -> 
     if not res:
         return ctx.tol
     r = np.concatenate(res)
-    # MAD to sigma of a normal distribution (a statistical constant)
-    sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    sigma = MAD_TO_SIGMA * float(np.median(np.abs(r - np.median(r))))
     log.info("noise from fitted faces: sigma %.4g (first estimate %.4g)", sigma, noise)
     return tolerance_for(sigma, diag, floor=TOL_FLOOR)
 

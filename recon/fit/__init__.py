@@ -9,13 +9,14 @@ from ._select import ANALYTIC_FITTERS, MISFIT_SCALE, fit_surface, residual_scale
 from ._quickfit import quick_fit, surface_normals
 from ._geometry import (BSplineCurve, BSplineSurface, Circle, Cone, CurveKind, Cylinder, EdgeCurve, Line, Plane, Sphere,
                         SurfaceKind, Torus)
-from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats,
+from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, MAD_TO_SIGMA, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats,
                      within_tolerance)
 
 __all__ = [
     "ACCEPT_MAX_FACTOR",
     "ANALYTIC_FITTERS",
     "CURVE_TYPES",
+    "MAD_TO_SIGMA",
     "MISFIT_SCALE",
     "SURFACE_TYPES",
     "BSplineCurve",

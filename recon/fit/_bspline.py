@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import cKDTree
 
-from .._array import as_points, helper_axis
+from .._array import as_points, x_or_y_helper
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface, basis_functions, clamped_knots, periodic_knots
 from ._noise import estimate_normals
@@ -161,7 +161,7 @@ def _cylindrical(points: np.ndarray, faces: np.ndarray):
     if np.linalg.norm(axis) < 1e-9 * np.ptp(points, axis=0).max():
         return None, None  # two loops around one centre (a washer, a torus cut once): no axis to wrap around
     axis /= np.linalg.norm(axis)
-    ex = np.cross(axis, helper_axis(axis))
+    ex = np.cross(axis, x_or_y_helper(axis))
     ex /= np.linalg.norm(ex)
     ey = np.cross(axis, ex)
     q = points - c0

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.interpolate import BSpline
 from scipy.spatial import cKDTree
 
-from .._array import helper_axis, row_norms, unit
+from .._array import x_or_y_helper, row_norms, unit
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface
 
@@ -44,7 +44,7 @@ class SurfaceKind(StrEnum):
 
 def _perp(d: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to ``d``: the radial direction a point on an axis is given."""
-    return unit(np.cross(d, helper_axis(d)))
+    return unit(np.cross(d, x_or_y_helper(d)))
 
 
 def _axis_frame(x: np.ndarray, origin: np.ndarray, d: np.ndarray, perp: np.ndarray):

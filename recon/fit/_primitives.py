@@ -31,7 +31,7 @@ from ._noise import estimate_normals
 from ._trf import trf_soft_l1
 from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
-from ._types import HUGE, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
+from ._types import HUGE, MAD_TO_SIGMA, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
 __all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
 
@@ -130,8 +130,7 @@ def _scale(residuals: np.ndarray, scale: float | None, size: float) -> float:
         if not scale > 0:
             raise FitError(f"`scale` must be > 0, got {scale}")
         return float(scale)
-    # MAD to sigma of a normal distribution (a statistical constant)
-    mad = 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
+    mad = MAD_TO_SIGMA * float(_median(np.abs(residuals - _median(residuals))))
     return max(mad, 1e-9 * size)
 
 
@@ -151,8 +150,8 @@ def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
     """
     if tolerance is not None:
         return float(tolerance)
-    # 4 sigma of the residuals (MAD × 1.4826) when no tolerance is given (scales with noise sigma)
-    return 4.0 * 1.4826 * float(_median(np.abs(residuals - _median(residuals))))
+    # 4 sigma of the residuals when no tolerance is given (scales with noise sigma)
+    return 4.0 * MAD_TO_SIGMA * float(_median(np.abs(residuals - _median(residuals))))
 
 
 def _failed(kind: str, n: int, reason: str) -> SurfaceFit:

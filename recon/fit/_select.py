@@ -13,7 +13,7 @@ from ._bspline import fit_bspline_surface
 from ._noise import default_tolerance, estimate_normals
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from .._array import as_points
-from ._types import SURFACE_TYPES, SurfaceFit
+from ._types import MAD_TO_SIGMA, SURFACE_TYPES, SurfaceFit
 
 __all__ = ["fit_surface", "residual_scale", "ANALYTIC_FITTERS", "MISFIT_SCALE", "SIGMAS_PER_TOLERANCE"]
 
@@ -29,8 +29,6 @@ ANALYTIC_FITTERS = {
 }
 #: Free parameters of each analytic type (the order above is by them).
 N_PARAMS = {"plane": 3, "sphere": 4, "cylinder": 5, "cone": 6, "torus": 7}
-#: Median |d| of a normal residual is 0.6745σ: the robust scale is 1.4826 × the median.
-MAD_TO_SIGMA = 1.4826
 #: A type within tolerance misfits its points when its residual scale is above √2 × the noise: a systematic
 #: deviation as large as the noise itself (σ̂² = σ² + b², b ≥ σ). Below it the residual is the noise plus what
 #: a sliver of a neighbouring face adds (the measurements: bench/segment.md).

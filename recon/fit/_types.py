@@ -18,6 +18,8 @@ from ._geometry import Curve, Surface, curve_from_params, surface_from_params
 #: A radius (or apex distance) beyond this many patch diagonals is numerically a plane, line or cylinder
 #: (scales with the part's size: its sagitta is below round-off there).
 HUGE = 1e3
+#: Median |d| of a normal residual is 0.6745σ: the robust scale is 1.4826 × the median.
+MAD_TO_SIGMA = 1.4826
 
 __all__ = ["SurfaceFit", "CurveFit", "SURFACE_TYPES", "CURVE_TYPES", "deviation_stats", "within_tolerance"]
 
