@@ -24,9 +24,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent / "recon"
 
-#: Files the check skips: none (patterns, relative to recon/, for a module being rewritten while the check lands).
-EXCLUDED: tuple[str, ...] = ()
-
 #: Literals that are arithmetic, not tuning: halves, unit steps, small counts, percent scales.
 #: Drawing code: its literals are styles (colours, line widths, alpha, figure sizes), not thresholds.
 DRAWING = ("preview.py", "skeleton2d/_plot.py")
@@ -47,10 +44,6 @@ class Constant:
     name: str
     value: str
     comment: str
-
-
-def _excluded(rel: str) -> bool:
-    return any(Path(rel).match(pat) for pat in EXCLUDED)
 
 
 def _comments(source: str) -> dict[int, str]:
@@ -142,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--check", action="store_true", help="exit 1 on a constant without a comment or a comment "
                                                           "naming a benchmark mesh")
     args = ap.parse_args(argv)
-    files = [p for p in sorted(ROOT.rglob("*.py")) if not _excluded(str(p.relative_to(ROOT)))]
+    files = sorted(ROOT.rglob("*.py"))
     drawing = {ROOT / d for d in DRAWING}
     problems = []
     if not args.check:
@@ -161,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.check:
         for p in problems:
             print(p)
-        print(f"{len(problems)} problem(s) in {len(files)} files ({len(EXCLUDED)} patterns excluded)")
+        print(f"{len(problems)} problem(s) in {len(files)} files")
     return 1 if args.check and problems else 0
 
 

@@ -11,13 +11,14 @@ import logging
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import splprep
+from scipy.interpolate import BSpline, splprep
 from scipy.optimize import least_squares
+from scipy.spatial import cKDTree
 
 from .._array import as_points, perpendicular_frame
 from ..errors import FitError, InputError
 from ._geometry import BSplineCurve, Circle, EdgeCurve, Line
-from ._types import HUGE, CurveFit, deviation_stats, within_tolerance
+from ._types import HUGE, MAD_TO_SIGMA, CurveFit, deviation_stats, within_tolerance
 
 __all__ = ["fit_line", "fit_circle", "fit_bspline_curve", "fit_curve", "fit_edge_curve", "polyline_curve",
            "point_curve"]
@@ -117,8 +118,8 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
     normal /= np.linalg.norm(normal)
     center = c0 + res.x[2:5] + mean
     radius = abs(float(res.x[5]))
-    # 4 sigma of the residuals (MAD × 1.4826) when no tolerance is given (scales with noise sigma)
-    limit = tolerance if tolerance is not None else 4 * 1.4826 * float(np.median(np.abs(res.fun)))
+    # 4 sigma of the residuals when no tolerance is given (scales with noise sigma)
+    limit = tolerance if tolerance is not None else 4 * MAD_TO_SIGMA * float(np.median(np.abs(res.fun)))
     if radius > HUGE * size or size**2 / (8 * radius) < limit:
         return _failed_circle(len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a line)")
     w = pts - center
@@ -232,13 +233,21 @@ def fit_curve(points: npt.ArrayLike, *, tolerance: float, closed: bool = False) 
 
 # --- edge curves pinned at the network vertices (the B-rep's edges) ---
 
+def _distinct(pts: np.ndarray) -> np.ndarray:
+    """``pts`` without the points that repeat their predecessor."""
+    return pts[np.concatenate([[True], np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-12])]
+
+
+def _chord_params(pts: np.ndarray) -> np.ndarray:
+    """Chord-length parameters of the polyline ``pts`` over [0, 1]."""
+    t = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    return t / t[-1]
+
+
 def polyline_curve(pts) -> EdgeCurve:
     """The polyline ``pts`` (k, 3) as an edge: a degree-1 B-spline through its points (chord-length knots)."""
-    pts = np.asarray(pts, dtype=np.float64)
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-12])
-    pts = pts[keep]
-    t = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    t /= t[-1]
+    pts = _distinct(np.asarray(pts, dtype=np.float64))
+    t = _chord_params(pts)
     return EdgeCurve.bspline(1, np.concatenate([[0.0, 0.0], t[1:-1], [1.0, 1.0]]), pts.copy(), 0.0)
 
 
@@ -250,9 +259,9 @@ def point_curve(points) -> EdgeCurve:
 
 
 def _pinned_circle_fit(pts):
-    """Plane + algebraic (Kåsa) circle fit. Returns center, normal, radius, xdir."""
+    """Plane + algebraic (Kåsa) circle fit: (center, normal, radius), or None where the points are collinear."""
     c0 = pts.mean(axis=0)
-    _, s, vt = np.linalg.svd(pts - c0)
+    _, _, vt = np.linalg.svd(pts - c0)
     normal = vt[2]
     u, w = vt[0], vt[1]
     xy = np.stack([(pts - c0) @ u, (pts - c0) @ w], axis=1)
@@ -339,17 +348,13 @@ def _bspline_pinned(pts, *, closed: bool, tolerance: float, degree: int = 3) -> 
     (Eilers & Marx, P-splines). The residual is measured on the curve densely sampled against the polyline,
     not only at the data points: it is what the B-rep builder and the report can trust.
     """
-    from scipy.interpolate import BSpline
-
-    seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
-    keep = np.concatenate([[True], seg > 1e-12])
-    pts = pts[keep]
+    pts = _distinct(pts)
     if len(pts) < 2:
         raise InputError("fit_edge_curve: an edge polyline has fewer than two distinct points")
     if len(pts) == 2:
         pts = np.vstack([pts[0], 0.5 * (pts[0] + pts[1]), pts[1]])
-    t = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
-    t /= t[-1]
+    t = _chord_params(pts)
+    fine = _between(t)
     k = min(degree, len(pts) - 1)
     most = max(k + 1, int(len(pts) / _POINTS_PER_SPAN) + k)
     best = None
@@ -365,19 +370,16 @@ def _bspline_pinned(pts, *, closed: bool, tolerance: float, degree: int = 3) -> 
             rhs = pts - np.outer(basis[:, 0], ctrl[0]) - np.outer(basis[:, -1], ctrl[-1])
             a = basis[:, 1:-1]
             normal = a.T @ a
-            if n_ctrl >= 3:
-                diff2 = np.diff(np.eye(n_ctrl), n=2, axis=0)
-                pen = diff2.T @ diff2
-                lam = _SMOOTHING * float(np.trace(normal)) / max(n_ctrl - 2, 1)
-                normal = normal + lam * pen[1:-1, 1:-1]
-                rhs_pen = -lam * (pen[1:-1, 0][:, None] * ctrl[0] + pen[1:-1, -1][:, None] * ctrl[-1])
-            else:
-                rhs_pen = 0.0
+            diff2 = np.diff(np.eye(n_ctrl), n=2, axis=0)
+            pen = diff2.T @ diff2
+            lam = _SMOOTHING * float(np.trace(normal)) / max(n_ctrl - 2, 1)
+            normal = normal + lam * pen[1:-1, 1:-1]
+            rhs_pen = -lam * (pen[1:-1, 0][:, None] * ctrl[0] + pen[1:-1, -1][:, None] * ctrl[-1])
             ctrl[1:-1] = np.linalg.solve(normal, a.T @ rhs + rhs_pen)
         curve = BSpline(knots, ctrl, k)
-        if _backtracks(curve, pts, t):
+        if _backtracks(curve, pts, fine):
             continue
-        resid = _curve_polyline_gap(curve, pts, t)
+        resid = _curve_polyline_gap(curve, pts, t, fine)
         if best is None or resid < best[3]:
             best = (knots, ctrl, k, resid)
         if resid <= tolerance:
@@ -385,12 +387,22 @@ def _bspline_pinned(pts, *, closed: bool, tolerance: float, degree: int = 3) -> 
     if best is None:
         # Every smooth fit loops back somewhere (a few points that zigzag along a short edge): the polyline
         # itself, a degree-1 B-spline through the points, is a valid edge that cannot cross itself.
-        best = (np.concatenate([[0.0, 0.0], t[1:-1], [1.0, 1.0]]), pts.copy(), 1, 0.0)
+        return polyline_curve(pts)
     knots, ctrl, k, resid = best
     return EdgeCurve.bspline(int(k), knots, ctrl, resid)
 
 
-def _backtracks(curve, pts, t, *, per_span: int = 4) -> bool:
+#: Curve samples per polyline segment where the fit is checked against the polyline (scale-free: per segment).
+_PER_SPAN = 4
+
+
+def _between(t: np.ndarray) -> np.ndarray:
+    """:data:`_PER_SPAN` parameters per segment of the polyline parametrised by ``t``, the segment's start first."""
+    w = np.linspace(0.0, 1.0, _PER_SPAN, endpoint=False)
+    return (t[:-1, None] * (1 - w) + t[1:, None] * w).ravel()
+
+
+def _backtracks(curve, pts, fine) -> bool:
     """True where the curve runs against the polyline's local direction (a loop, or a cusp and a turn back).
 
     The direction is the chord over three segments about each one, so that one noisy point does not count
@@ -398,23 +410,18 @@ def _backtracks(curve, pts, t, *, per_span: int = 4) -> bool:
     self-intersecting wire.
     """
     n = len(pts)
-    w = np.linspace(0.0, 1.0, per_span, endpoint=False)
-    fine = (t[:-1, None] * (1 - w) + t[1:, None] * w).ravel()
-    seg = np.repeat(np.arange(n - 1), per_span)
+    seg = np.repeat(np.arange(n - 1), _PER_SPAN)
     window = pts[np.minimum(seg + 2, n - 1)] - pts[np.maximum(seg - 1, 0)]
     tangent = curve.derivative()(fine)
     return bool(np.any(np.einsum("ij,ij->i", tangent, window) < 0))
 
 
-def _curve_polyline_gap(curve, pts, t, *, per_span: int = 4) -> float:
+def _curve_polyline_gap(curve, pts, t, fine) -> float:
     """Largest distance of ``curve`` from the polyline ``pts``: at the data parameters ``t``, and between them
     wherever the curve strays from the polyline by more than a segment's length (an overshoot; a smooth
     curve's sagitta over a chord is far smaller than that)."""
-    from scipy.spatial import cKDTree
-
     at_data = float(np.max(np.linalg.norm(curve(t) - pts, axis=1)))
-    w = np.linspace(0.0, 1.0, per_span, endpoint=False)
-    fine = (t[:-1, None] * (1 - w) + t[1:, None] * w).ravel()
+    w = np.linspace(0.0, 1.0, _PER_SPAN, endpoint=False)
     dense = (pts[:-1, None, :] * (1 - w)[None, :, None] + pts[1:, None, :] * w[None, :, None]).reshape(-1, 3)
     between = float(np.max(cKDTree(np.vstack([dense, pts[-1:]])).query(curve(fine))[0]))
     seg = float(np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
