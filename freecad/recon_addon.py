@@ -16,7 +16,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -38,6 +37,8 @@ KIND_COLOURS = {
 
 #: what the spreadsheet lists per face, in its columns A, B, ...
 SHEET_COLUMNS = ("Face", "Name", "Kind", "Surface", "Status", "Area", "MeshToShapeMax", "ShapeToMeshMax")
+#: columns written as text with 3 significant digits: a sheet shows numbers to 2 decimals, so 9e-07 mm would read 0.00
+_SMALL_COLUMNS = ("MeshToShapeMax", "ShapeToMeshMax")
 
 # recon's exit codes (README): 0 good, 1 written but not good; anything else wrote nothing.
 _WRITTEN = (0, 1)
@@ -380,14 +381,17 @@ def _text(value: object) -> str:
 
 
 def add_face_sheet(doc, label: str, rows: Sequence[Sequence[object]]):
-    """A Spreadsheet listing each face (Face1..FaceN) with recon's name, kind, surface type and figures."""
+    """A Spreadsheet listing each face (Face1..FaceN) with recon's name, kind, surface type, build status, area (mm²)
+    and deviations (mm): FreeCAD 0.20 shows no names of sub-shapes, so the names live here and in ``FaceNames``."""
     sheet = doc.addObject("Spreadsheet::Sheet", "ReconFaces")
     sheet.Label = label
     cols = [chr(ord("A") + i) for i in range(len(SHEET_COLUMNS))]
     for col, title in zip(cols, SHEET_COLUMNS):
         sheet.set(f"{col}1", "'" + title)
     for i, row in enumerate(rows, start=2):
-        for col, value in zip(cols, row):
+        for col, title, value in zip(cols, SHEET_COLUMNS, row):
+            if isinstance(value, float) and title in _SMALL_COLUMNS:
+                value = f"{value:.3g}"
             if value is not None and value != "":
                 sheet.set(f"{col}{i}", _text(value))
     return sheet

@@ -117,6 +117,7 @@ class ReportPanel:
         table.setSelectionBehavior(QtGui.QAbstractItemView.SelectRows)
         table.setEditTriggers(QtGui.QAbstractItemView.NoEditTriggers)
         table.itemSelectionChanged.connect(self._select)
+        table.setMinimumHeight(320)
         return table
 
     def _select(self):
