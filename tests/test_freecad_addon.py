@@ -36,6 +36,21 @@ rows = []
 for i in range(1, len(shape.Faces) + 2):
     rows.append([sheet.getContents(c + str(i)) for c in "ABCD"])
 by_file = recon_addon.mesh_to_cad(doc, os.environ["RECON_FC_MESH"])  # prints its summary on stdout
+errors = {}
+recon_addon.params().SetString("ReconPython", "/nonexistent/python")
+try:
+    recon_addon.recon_command()
+except recon_addon.ReconAddonError as exc:
+    errors["setting"] = str(exc)
+recon_addon.params().SetString("ReconPython", os.environ["RECON_FC_PYTHON"])
+with open("empty.stl", "w") as fh:
+    fh.write("solid empty\nendsolid empty\n")
+before = len(doc.Objects)
+try:
+    recon_addon.mesh_to_cad(doc, "empty.stl")
+except recon_addon.ReconAddonError as exc:
+    errors["bad_mesh"] = str(exc)
+errors["objects_added"] = len(doc.Objects) - before
 out = {
     "module": recon_addon.__file__,
     "command": recon_addon.recon_command(),
@@ -49,7 +64,7 @@ out = {
     "sheet_label": sheet.Label, "sheet_type": sheet.TypeId, "rows": rows, "logged": logged,
     "feature_label": res.feature.Label, "within": res.feature.WithinTolerance,
     "file_faces": len(by_file.feature.Shape.Faces), "file_valid": by_file.feature.Shape.isValid(),
-    "file_label": by_file.feature.Label,
+    "file_label": by_file.feature.Label, "errors": errors,
 }
 with open(os.environ["RECON_FC_OUT"], "w") as fh:
     json.dump(out, fh)
@@ -130,3 +145,12 @@ def test_headless_the_report_is_printed(addon_run):
     assert "faces: 26 (12 cylinder, 8 sphere, 6 plane)" in res["logged"]
     assert any(s.startswith("deviation mesh→shape: max") for s in res["logged"])
     assert "result: within tolerance" in stdout and "faces: 26 (12 cylinder, 8 sphere, 6 plane)" in stdout
+
+
+def test_errors_are_one_line_and_add_nothing(addon_run):
+    res, _ = addon_run
+    errors = res["errors"]
+    assert "ReconPython" in errors["setting"] and "/nonexistent/python" in errors["setting"]
+    # recon's exit 2 (bad input: a mesh without triangles) reaches the user with recon's own line, and no object.
+    assert errors["bad_mesh"].startswith("recon convert failed (exit 2): ") and "\n" not in errors["bad_mesh"]
+    assert errors["objects_added"] == 0
