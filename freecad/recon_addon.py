@@ -174,7 +174,7 @@ def convert(
 def _wait(proc: subprocess.Popen, t0: float, timeout: Optional[float], poll: Optional[Callable[[], bool]]) -> int:
     while True:
         try:
-            return proc.wait(timeout=0.1)
+            return proc.wait(timeout=0.1)  # 10 polls a second keep a GUI responsive
         except subprocess.TimeoutExpired:
             pass
         stop = poll is not None and poll() is False
@@ -182,7 +182,7 @@ def _wait(proc: subprocess.Popen, t0: float, timeout: Optional[float], poll: Opt
         if stop or late:
             proc.terminate()  # recon removes its half-written files on SIGTERM (README: exit 143)
             try:
-                proc.wait(timeout=10)
+                proc.wait(timeout=10)  # recon stops within ~2 s of SIGTERM (README); then it is hung
             except subprocess.TimeoutExpired:
                 proc.kill()
                 proc.wait()
@@ -235,7 +235,7 @@ def _colour_of(ents: Dict[int, Tuple[str, str]], style: int, depth: int = 0) -> 
     if kind == "COLOUR_RGB":
         rgb = [float(x) for x in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", _STRING.sub("", args))[:3]]
         return (srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])) if len(rgb) == 3 else None
-    if depth > 8:
+    if depth > 8:  # a style reaches its colour in 7 steps (STYLED_ITEM … FILL_AREA_STYLE_COLOUR → COLOUR_RGB)
         return None
     for ref in _refs(args):
         found = _colour_of(ents, ref, depth + 1)
@@ -290,6 +290,8 @@ def names_match_report(shape, faces: Sequence[StepFace], report: dict) -> bool:
     total_rep = sum(by_name[f.name] for f in faces)
     if total_fc <= 0 or total_rep <= 0:
         return False
+    # Both areas come from OpenCascade on the same surfaces, so they agree to round-off. Faces of equal area (a box's
+    # 8 corners) cannot be told apart this way: there the order rests on the reader keeping the shells' face order.
     return all(abs(sf.Area / total_fc - by_name[f.name] / total_rep) <= 1e-6 for sf, f in zip(shape.Faces, faces))
 
 
