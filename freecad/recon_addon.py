@@ -224,17 +224,12 @@ def _first_string(args: str) -> str:
     return m.group()[1:-1].replace("''", "'") if m else ""
 
 
-def srgb_to_linear(c: float) -> float:
-    """A STEP colour component (sRGB, as OpenCascade writes and reads it) as the linear value recon set."""
-    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
-
-
 def _colour_of(ents: Dict[int, Tuple[str, str]], style: int, depth: int = 0) -> Optional[Colour]:
     """The first COLOUR_RGB reached from a style entity (presentation style → fill area → colour)."""
     kind, args = ents.get(style, ("", ""))
     if kind == "COLOUR_RGB":
         rgb = [float(x) for x in re.findall(r"[-+]?\d*\.?\d+(?:[eE][-+]?\d+)?", _STRING.sub("", args))[:3]]
-        return (srgb_to_linear(rgb[0]), srgb_to_linear(rgb[1]), srgb_to_linear(rgb[2])) if len(rgb) == 3 else None
+        return (rgb[0], rgb[1], rgb[2]) if len(rgb) == 3 else None  # recon writes display (sRGB) values
     if depth > 8:  # a style reaches its colour in 7 steps (STYLED_ITEM … FILL_AREA_STYLE_COLOUR → COLOUR_RGB)
         return None
     for ref in _refs(args):

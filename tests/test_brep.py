@@ -87,6 +87,11 @@ def test_step_round_trip_keeps_volume_names_and_colours(fillet_result, tmp_path)
     by_name = {r.name: r.kind for r in res.faces}
     for name, rgb in faces:
         assert rgb == pytest.approx(KIND_COLOURS[by_name[name]], abs=1e-6)
+    # the file itself holds the display (sRGB) values, as every other STEP reader shows them
+    written = re.findall(r"COLOUR_RGB\('[^']*',([-+\d.eE]+),([-+\d.eE]+),([-+\d.eE]+)\)", path.read_text())
+    assert written
+    for rgb in written:
+        assert any(tuple(map(float, rgb)) == pytest.approx(c, abs=1e-6) for c in KIND_COLOURS.values()), rgb
 
 
 def _strip_file_name(text: str) -> str:

@@ -95,7 +95,7 @@ def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
             continue
         TDataStd_Name.Set_s(sub, TCollection_ExtendedString(rec.name))
         r, g, b = KIND_COLOURS.get(rec.kind, KIND_COLOURS["patch"])
-        colour_tool.SetColor(sub, Quantity_Color(r, g, b, Quantity_TypeOfColor.Quantity_TOC_RGB),
+        colour_tool.SetColor(sub, Quantity_Color(r, g, b, Quantity_TypeOfColor.Quantity_TOC_sRGB),
                              XCAFDoc_ColorType.XCAFDoc_ColorSurf)
     settings = {"write.stepcaf.subshapes.name": 1, "write.step.schema": "AP242DIS", "write.step.unit": "MM"}
     with _static(settings), _quiet():
@@ -195,6 +195,6 @@ def read_step_faces(path: str | os.PathLike) -> list[tuple[str | None, tuple[flo
             colour = Quantity_Color()
             rgb = None
             if colour_tool.GetColor_s(lab, XCAFDoc_ColorType.XCAFDoc_ColorSurf, colour):
-                rgb = (colour.Red(), colour.Green(), colour.Blue())
+                rgb = colour.Values(Quantity_TypeOfColor.Quantity_TOC_sRGB)
             out.append((_label_name(lab), rgb))
     return out
