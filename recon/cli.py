@@ -3,6 +3,9 @@
 Each subcommand lives in ``recon/_cli/<name>.py`` with ``add_parser(subparsers)`` (which registers the
 parser and sets ``func``) so that stages can add commands without touching each other.
 
+Output: the result's summary goes to stdout (``recon convert a.stl b.step > summary.txt`` keeps it); warnings,
+progress and errors go to stderr; ``-q`` prints errors only.
+
 Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), 2 bad input,
 an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 an
 internal error (a bug: one line, the traceback with ``-v``), 128 + the signal when interrupted (130 SIGINT,
@@ -33,7 +36,8 @@ EXIT_OK, EXIT_NOT_GOOD, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
 
 log = logging.getLogger("recon")
 
-_EPILOG = ("exit codes: 0 done and good; 1 a result written that is not good (the summary says why); 2 bad input, "
+_EPILOG = ("output: the summary on stdout; warnings, progress and errors on stderr (-q: errors only). "
+           "exit codes: 0 done and good; 1 a result written that is not good (the summary says why); 2 bad input, "
            "option or output path, or not enough memory; 3 internal error (run with -v for the traceback); "
            "130 interrupted (SIGINT), 143 terminated (SIGTERM)")
 
@@ -48,9 +52,10 @@ class _Parser(argparse.ArgumentParser):
 def _verbosity(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group()
     group.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                       help="log progress details, and the traceback of an error, to stderr (default: off)")
+                       help="also log the stages' details, and the traceback of an error, to stderr (default: off)")
     group.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-                       help="print errors only (default: off)")
+                       help="print errors only, one line on stderr: no summary on stdout, no progress or warnings "
+                       "(default: off; the exit code still tells the result)")
 
 
 def _version() -> str:

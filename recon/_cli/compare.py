@@ -65,6 +65,17 @@ def run(args) -> int:
     write_json(args.json, report.to_json())
     if args.preview:
         plot_deviation(vertices, faces, report.signed, args.preview, title=Path(args.mesh).name)
-    m = report.mesh_to_shape
-    log.info("mesh → shape: max %.4g (%.3f%%), rms %.4g", m.max, m.pct(m.max), m.rms)
+    if not args.quiet:  # the result on stdout, like convert's summary
+        print(summary(report))
+        print(f"wrote {args.json}", flush=True)
     return 0
+
+
+def summary(report) -> str:
+    """The deviation both ways, one line each (lengths in the STEP file's unit as read: mm)."""
+    lines = []
+    for way, m in (("mesh→shape", report.mesh_to_shape), ("shape→mesh", report.shape_to_mesh)):
+        lines.append(f"deviation {way}: max {m.max:.4g} mm ({m.pct(m.max):.3f}%), p95 {m.p95:.4g} mm "
+                     f"({m.pct(m.p95):.3f}%), rms {m.rms:.4g} mm ({m.pct(m.rms):.3f}%) of diagonal "
+                     f"{report.diagonal:.4g} mm")
+    return "\n".join(lines)

@@ -208,7 +208,7 @@ def run(args) -> int:
         from ..preview import render_result
 
         render_result(args.preview, result, title=f"{result.report['n_faces']} faces")
-    if not args.quiet:
-        print(summary(result.report), file=sys.stderr)
-        print(f"wrote {out}", file=sys.stderr)
+    if not args.quiet:  # the result on stdout (`> summary.txt` keeps it); progress and warnings went to stderr
+        print(summary(result.report))
+        print(f"wrote {out}", flush=True)
     return 0 if verdict.ok else 1
