@@ -3,6 +3,7 @@ warnings, progress and errors on stderr, ``-q`` errors only; lengths with their 
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 
@@ -68,3 +69,26 @@ def test_help_says_where_the_output_goes(capsys):
         main(["convert", "--help"])
     out = " ".join(capsys.readouterr().out.split())
     assert "summary on stdout" in out and "errors only" in out and "exit codes: 0" in out
+
+
+def test_figures_keep_their_size_and_unit():
+    """A tiny deviation (an exact CAD export's round-off) shows its size, never "0.000"; lengths carry the unit."""
+    from recon._cli._format import deviation_line, length, number, percent
+
+    assert length(1.04e-6) == "1.0e-06 mm" and percent(1.34e-6) == "1.3e-06 %"
+    assert length(0.012345) == "0.01235 mm" and percent(0.0617) == "0.0617 %" and length(25.4, "in") == "25.4 in"
+    assert number(0.0) == "0" and number(float("nan")) == "n/a" and length(None) == "n/a"
+    stats = {"max": 1e-6, "p95": 5e-7, "rms": 2e-7, "max_pct": 1.3e-6, "p95_pct": 6.5e-7, "rms_pct": 2.6e-7}
+    line = deviation_line("mesh→shape", stats, 77.0)
+    assert line == ("deviation mesh→shape: max 1.0e-06 mm (1.3e-06 % of diagonal), p95 5.0e-07 mm (6.5e-07 % of "
+                    "diagonal), rms 2.0e-07 mm (2.6e-07 % of diagonal); diagonal 77 mm")
+
+
+def test_printed_deviations_have_units_and_no_zero_percent(work):
+    proc = _run(work, "convert", "part.stl", "out.step")
+    dev = [ln for ln in proc.stdout.splitlines() if ln.startswith("deviation ")]
+    assert len(dev) == 2, proc.stdout
+    for line in dev:
+        assert line.count(" mm (") == 3 and line.count(" % of diagonal)") == 3, line
+        assert "0.000" not in line, line
+    assert re.search(r"\(tolerance [0-9.e+-]+ mm\)", proc.stdout.splitlines()[0]), proc.stdout

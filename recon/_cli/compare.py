@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 from ._checks import MIN_SAMPLES
-
-log = logging.getLogger(__name__)
+from ._format import deviation_line
 
 
 def add_parser(sub):
@@ -72,10 +70,7 @@ def run(args) -> int:
 
 
 def summary(report) -> str:
-    """The deviation both ways, one line each (lengths in the STEP file's unit as read: mm)."""
-    lines = []
-    for way, m in (("mesh→shape", report.mesh_to_shape), ("shape→mesh", report.shape_to_mesh)):
-        lines.append(f"deviation {way}: max {m.max:.4g} mm ({m.pct(m.max):.3f}%), p95 {m.p95:.4g} mm "
-                     f"({m.pct(m.p95):.3f}%), rms {m.rms:.4g} mm ({m.pct(m.rms):.3f}%) of diagonal "
-                     f"{report.diagonal:.4g} mm")
-    return "\n".join(lines)
+    """The deviation both ways, one line each (lengths in the unit OpenCascade reads STEP files in: mm)."""
+    data = report.to_json()
+    return "\n".join(deviation_line(way, data[key], data["diagonal"])
+                     for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")))

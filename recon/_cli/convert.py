@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 from ._checks import MAX_DIAGONAL, MIN_DIAGONAL
+from ._format import deviation_line, length, number
 
 OUTPUT_SUFFIXES = (".step", ".stp", ".brep", ".stl")
 
@@ -63,16 +64,16 @@ class _Progress:
             self.done.add(stage)
 
 
-def summary(report: dict) -> str:
+def summary(report: dict, *, unit: str = "mm") -> str:
     """The end-of-run summary: the verdict first (within tolerance or not, and why), then faces by type, validity,
-    deviation, time and warnings. Lengths are in the mesh's units, which the STEP file states as mm."""
+    deviation, time and warnings. Lengths are in the mesh's units, ``unit`` (what the output file declares)."""
     v = report["validity"]
     kinds = ", ".join(f"{n} {t}" for t, n in sorted(report["faces_by_type"].items(), key=lambda kv: -kv[1]))
-    lines = [verdict_line(report)] if "verdict" in report else []
+    lines = [verdict_line(report, unit=unit)] if "verdict" in report else []
     solid = next((r for r in report.get("verdict", {}).get("rules", []) if r["rule"] == "solid"), None)
     if solid is not None:  # what the written file holds, read back (the verdict's own figures)
         v = {**v, **solid["value"], "ok": solid["ok"]}
-    vol = "n/a" if v["volume"] is None else f"{v['volume']:.6g} mm³"
+    vol = "n/a" if v["volume"] is None else f"{number(v['volume'], 6)} {unit}³"
     lines += [
         f"faces: {report['n_faces']} ({kinds})",
         f"solid: {'valid closed solid' if v['ok'] else 'NOT a valid closed solid'} "
@@ -81,10 +82,7 @@ def summary(report: dict) -> str:
     dev = report.get("deviation")
     if dev:
         for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")):
-            m = dev[key]
-            line = (f"deviation {way}: max {_mm(m['max'])} ({_pct(m['max_pct'])}), p95 {_mm(m['p95'])} "
-                    f"({_pct(m['p95_pct'])}), rms {_mm(m['rms'])} ({_pct(m['rms_pct'])}) of diagonal "
-                    f"{_mm(dev['diagonal'])}")
+            line = deviation_line(way, dev[key], dev["diagonal"], unit)
             if key == "shape_to_mesh":
                 # Where the shape leaves the mesh: a face that reaches far out shows here only (mesh→shape
                 # measures from the mesh's points, which all lie near some face).
@@ -103,28 +101,20 @@ def summary(report: dict) -> str:
     return "\n".join(lines)
 
 
-def _mm(x) -> str:
-    return "n/a" if x is None else f"{x:.4g} mm"
-
-
-def _pct(x) -> str:
-    return "n/a" if x is None else f"{x:.3f}%"
-
-
 #: Rules named in the verdict line; the report has all of them.
 VERDICT_RULES = 3
 
 
-def verdict_line(report: dict) -> str:
+def verdict_line(report: dict, *, unit: str = "mm") -> str:
     """One line a CAD user reads at a glance: "within tolerance", "NOT within tolerance (rule …: value vs limit, faces
     …)", or for a run that measured no deviation "deviation NOT verified"."""
     verdict = report["verdict"]
-    tol = f"tolerance {_mm(report['tolerance'])}"
+    tol = f"tolerance {length(report['tolerance'], unit)}"
     failed = [r for r in verdict["rules"] if r["ok"] is False]
     if failed:
         # (a wrong solid is not within tolerance of the part either, whichever rule shows it)
         words = "NOT within tolerance"
-        why = "; ".join(_rule_words(r) for r in failed[:VERDICT_RULES])
+        why = "; ".join(_rule_words(r, unit) for r in failed[:VERDICT_RULES])
         more = f"; and {len(failed) - VERDICT_RULES} more rules" if len(failed) > VERDICT_RULES else ""
         return f"result: {words} ({tol}; {why}{more}); see --report's \"verdict\""
     if verdict["within_tolerance"] is None:
@@ -135,13 +125,13 @@ def verdict_line(report: dict) -> str:
             f"and volume within their limits")
 
 
-def _rule_words(rule: dict) -> str:
+def _rule_words(rule: dict, unit: str) -> str:
     faces = rule["faces"]
     at = f", faces {', '.join(faces[:4])}{' …' if len(faces) > 4 else ''}" if faces else ""
     if isinstance(rule["value"], (int, float)) and isinstance(rule["limit"], (int, float)) \
             and rule["rule"] not in ("coverage", "overlap"):
-        unit = "mm³" if rule["rule"] == "volume" else "mm"
-        return f"rule {rule['rule']}: {rule['value']:.4g} {unit} vs limit {rule['limit']:.4g} {unit}{at}"
+        unit = f"{unit}³" if rule["rule"] == "volume" else unit
+        return f"rule {rule['rule']}: {length(rule['value'], unit)} vs limit {length(rule['limit'], unit)}{at}"
     return f"rule {rule['rule']}: {rule['detail']}{at}"
 
 
