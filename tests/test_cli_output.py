@@ -3,6 +3,7 @@ warnings, progress and errors on stderr, ``-q`` errors only; lengths with their 
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -15,11 +16,12 @@ SMALL = "prism_coarse.stl"  # 264 triangles: the quickest fixture that converts
 SUMMARY_HEADS = ("result: ", "faces: ", "solid: ", "deviation mesh→shape: ", "deviation shape→mesh: ", "time: ")
 
 
-def _run(work, *args, timeout=300):
+def _run(work, *args, timeout=300, interval=3600):
+    """The CLI in a subprocess, stdout and stderr pipes (not terminals); progress lines every ``interval`` s."""
     tmp = work / "tmp"
     tmp.mkdir(exist_ok=True)
-    return subprocess.run(cli_command(*args), cwd=work, env=cli_env(tmp), capture_output=True, text=True,
-                          timeout=timeout)
+    env = {**cli_env(tmp), "RECON_PROGRESS_INTERVAL": str(interval)}
+    return subprocess.run(cli_command(*args), cwd=work, env=env, capture_output=True, text=True, timeout=timeout)
 
 
 @pytest.fixture()
@@ -31,7 +33,8 @@ def work(tmp_path):
 
 def test_convert_summary_on_stdout_nothing_on_stderr(work):
     """Piped (no terminal): the summary lines, in order, and "wrote" on stdout; stderr holds none of them (a clean
-    fixture has no warning, and off a terminal a run this short prints no progress)."""
+    fixture has no warning, and off a terminal a run shorter than the progress interval prints no progress: the
+    interval is an hour here, so that a loaded machine cannot make the run longer than it)."""
     proc = _run(work, "convert", "part.stl", "out.step")
     assert proc.returncode == 0, proc.stderr
     heads = [next(h for h in SUMMARY_HEADS if ln.startswith(h)) for ln in proc.stdout.splitlines()
@@ -92,3 +95,69 @@ def test_printed_deviations_have_units_and_no_zero_percent(work):
         assert line.count(" mm (") == 3 and line.count(" % of diagonal)") == 3, line
         assert "0.000" not in line, line
     assert re.search(r"\(tolerance [0-9.e+-]+ mm\)", proc.stdout.splitlines()[0]), proc.stdout
+
+
+PROGRESS = re.compile(r"^recon: (fit|brep|deviation): (parts fitted|refinement passes|faces built|points measured) "
+                      r"([0-9,]+)/([0-9,]+) \(\d+ %\)(, (about \d+ (s|min)|under 1 s) left)?$")
+
+
+def test_progress_lines_off_a_terminal_count_the_items(work):
+    """stderr a pipe, the interval 0 (a stand-in for a run longer than 5 s: every count is printed): plain lines with
+    the parts fitted, the faces built and the points measured, counting up to below their totals; the faces' total
+    is the number of parts. stdout holds the summary alone."""
+    shutil.copyfile(FIXTURES / "box_fillet_coarse.stl", work / "fillet.stl")  # through the fit stage (no exact path)
+    proc = _run(work, "convert", "fillet.stl", "out.step", "--report", "r.json", interval=0)
+    assert proc.returncode in (0, 1), proc.stderr
+    counts: dict = {}
+    for line in proc.stderr.splitlines():
+        m = PROGRESS.match(line)
+        assert m, line  # nothing else on stderr: no warning is logged that the summary repeats
+        done, total = int(m[3].replace(",", "")), int(m[4].replace(",", ""))
+        assert 0 < done < total, line
+        counts.setdefault((m[1], m[2]), []).append((done, total))
+    assert {"fit", "brep", "deviation"} == {stage for stage, _ in counts}
+    assert ("fit", "parts fitted") in counts and ("fit", "refinement passes") in counts
+    report = json.loads((work / "r.json").read_text())
+    for seq in counts.values():
+        assert len({t for _, t in seq}) == 1 and [d for d, _ in seq] == sorted({d for d, _ in seq}), seq
+    assert counts[("brep", "faces built")] == [(k, len(report["faces"])) for k in range(1, len(report["faces"]))]
+    assert counts[("deviation", "points measured")][0][1] > report["mesh"]["triangles"] / 2  # vertices + samples
+    assert not any(PROGRESS.match(ln) for ln in proc.stdout.splitlines())
+    assert proc.stdout.splitlines()[-1] == "wrote out.step"
+
+
+class _Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_plain_progress_waits_for_the_interval_and_a_terminal_redraws_one_line():
+    import io
+
+    from recon._progress import Count, StageProgress
+
+    clock, out = _Clock(), io.StringIO()
+    shown = StageProgress(out, tty=False, interval=5.0, clock=clock)
+    shown("fit", 0.0)
+    for k, t in enumerate([1.0, 4.9, 5.1, 7.0, 10.0, 10.2], 1):  # seconds since the run began
+        clock.t = 100.0 + t
+        shown("fit", Count(k, 10, "parts fitted"))
+    shown("fit", 1.0)
+    # none before 5 s (a shorter run prints nothing), then at most one per 5 s
+    assert out.getvalue().splitlines() == ["recon: fit: parts fitted 3/10 (30 %), about 12 s left",
+                                           "recon: fit: parts fitted 6/10 (60 %), about 7 s left"]
+    clock.t, tty = 0.0, io.StringIO()
+    shown = StageProgress(tty, tty=True, clock=clock)
+    shown("brep", 0.0)
+    clock.t = 1.0
+    shown("brep", Count(1, 4, "faces built"))
+    clock.t = 1.05  # within a tenth of a second of the last redraw: not drawn
+    shown("brep", Count(2, 4, "faces built"))
+    clock.t = 2.0
+    shown("brep", 1.0)
+    assert tty.getvalue() == ("\r\x1b[K  brep       …" "\r\x1b[K  brep       faces built 1/4 (25 %), about 3 s left"
+                              "\r\x1b[K  brep         2.00 s\n")
+    assert Count(1, 4, "x") == 0.25 and isinstance(Count(1, 4, "x"), float)  # a plain callback reads a fraction

@@ -41,12 +41,15 @@ def add_parser(sub):
 
 
 class _Progress:
-    """One line per stage on stderr (``stream`` None: none): name, then its time when it ends. Between stages it
-    stops a run whose interrupt some library swallowed (see ``recon._cli._signals``)."""
+    """The run's progress on stderr (:class:`recon._progress.StageProgress`: a live line per stage on a terminal,
+    a plain line every few seconds elsewhere; ``stream`` None: none). At every call it stops a run whose interrupt
+    some library swallowed (see ``recon._cli._signals``)."""
 
     def __init__(self, stream):
-        self.stream = stream
-        self.t0 = {}
+        from .._progress import StageProgress, interval_from_env
+
+        self.shown = None if stream is None else StageProgress(stream, tty=stream.isatty(),
+                                                                 interval=interval_from_env())
         self.done = set()  # the CLI loads the mesh itself: convert()'s own "load" stage is not shown again
 
     def __call__(self, stage, frac):
@@ -54,14 +57,17 @@ class _Progress:
 
         if commits_stopped():
             raise KeyboardInterrupt(commits_stopped())
-        if self.stream is None or stage in self.done:
+        if self.shown is None or stage in self.done:
             return
-        if frac == 0.0:
-            self.t0[stage] = time.perf_counter()
-            print(f"  {stage:<10} …", end="", file=self.stream, flush=True)
-        else:
-            print(f" {time.perf_counter() - self.t0[stage]:6.2f} s", file=self.stream, flush=True)
+        self.shown(stage, frac)
+        if frac >= 1.0:
             self.done.add(stage)
+
+    def filter(self, record) -> bool:
+        """A log filter that erases a half-drawn progress line before the message is printed."""
+        if self.shown is not None:
+            self.shown.clear()
+        return True
 
 
 def summary(report: dict, *, unit: str = "mm") -> str:
@@ -150,7 +156,7 @@ class _RepeatedInSummary:
 
 def run(args) -> int:
     from ..errors import InputError
-    from ._checks import check_outputs, check_size, check_tolerance, positive_length, at_least
+    from ._checks import at_least, check_outputs, positive_length
 
     out = Path(args.out)
     if out.suffix.lower() not in OUTPUT_SUFFIXES:
@@ -161,18 +167,29 @@ def run(args) -> int:
     check_outputs([("input mesh", args.mesh)],
                   [("output", args.out), ("--report", args.report), ("--preview", args.preview)])
 
+    # Progress on stderr: a live line on a terminal; elsewhere a line every few seconds, none in a short run.
+    progress = _Progress(None if args.quiet else sys.stderr)
+    filters = [progress] if args.verbose else [_RepeatedInSummary(), progress]
+    handlers = list(logging.getLogger().handlers)
+    for handler in handlers:
+        for f in filters:
+            handler.addFilter(f)
+    try:
+        return _convert(args, out, progress)
+    finally:  # (main() may run again in this process: a test, a notebook)
+        for handler in handlers:
+            for f in filters:
+                handler.removeFilter(f)
+
+
+def _convert(args, out: Path, progress: _Progress) -> int:
     from .._io import write_json
+    from ._checks import check_size, check_tolerance
     from ..mesh import load_mesh
     from ..pipeline import convert
     from ..verdict import write_checked
 
-    # Progress lines only on a terminal: piped stderr carries the summary, or one line on error.
-    tty = sys.stderr.isatty() and not args.quiet
-    progress = _Progress(sys.stderr if tty else None)
-    if not args.verbose:
-        for handler in logging.getLogger().handlers:
-            handler.addFilter(_RepeatedInSummary())
-    if tty:
+    if progress.shown is not None and progress.shown.tty:
         print(f"recon convert {args.mesh}", file=sys.stderr)
     # Loaded here, so that the part's size and the tolerance are checked before the work starts.
     t_load = time.perf_counter()
