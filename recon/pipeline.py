@@ -118,6 +118,7 @@ def convert(
     Conversion
     """
     from .brep import build_solid  # the CAD kernel loads only when a B-rep is wanted
+    from .brep._messages import occ_messages  # OpenCascade's own messages: to the log, not to stdout
     from .network import curve_network
 
     def step(name, frac):
@@ -174,9 +175,10 @@ def convert(
     network = curve_network(mesh.vertices, mesh.faces, labels)
     try:
         areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
-        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
-                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
-                           progress=items("brep"))
+        with occ_messages():
+            brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
+                               part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
+                               progress=items("brep"))
     except BrepError:
         raise
     times["brep"] = time.perf_counter() - t
@@ -189,7 +191,9 @@ def convert(
         t = time.perf_counter()
         step("deviation", 0.0)
         try:
-            dev = measure(mesh.vertices, mesh.faces, brep.occ, names=_face_names(brep), progress=items("deviation"))
+            with occ_messages():
+                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=_face_names(brep),
+                              progress=items("deviation"))
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
             dev_error = str(err)

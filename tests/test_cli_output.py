@@ -161,3 +161,25 @@ def test_plain_progress_waits_for_the_interval_and_a_terminal_redraws_one_line()
     assert tty.getvalue() == ("\r\x1b[K  brep       …" "\r\x1b[K  brep       faces built 1/4 (25 %), about 3 s left"
                               "\r\x1b[K  brep         2.00 s\n")
     assert Count(1, 4, "x") == 0.25 and isinstance(Count(1, 4, "x"), float)  # a plain callback reads a fraction
+
+
+def test_occ_warnings_stay_out_of_the_summary_and_stderr(work, capfd, monkeypatch):
+    """An OpenCascade warning during the B-rep stage (a filling's broken wire, see test_export) is neither in the
+    summary on stdout nor on stderr: it goes to the debug log."""
+    import recon.brep
+    from recon.cli import main
+    from test_export import WIRE_WARNING, _filling_of_a_broken_wire
+
+    real, calls = recon.brep.build_solid, []
+
+    def noisy(*args, **kwargs):
+        calls.append(_filling_of_a_broken_wire())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(recon.brep, "build_solid", noisy)
+    monkeypatch.chdir(work)
+    capfd.readouterr()
+    assert main(["convert", "part.stl", "out.step"]) == 0 and calls == [True]
+    captured = capfd.readouterr()
+    assert WIRE_WARNING not in captured.out + captured.err
+    assert captured.out.startswith("result: within tolerance") and captured.err == "", captured

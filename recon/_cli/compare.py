@@ -59,7 +59,10 @@ def run(args) -> int:
                   [("--json", args.json), ("--preview", args.preview)])
     _check_step(args.shape)
     vertices, faces = _load_mesh(args.mesh)
-    report = deviation(vertices, faces, args.shape, samples=args.samples)
+    from ..brep._messages import occ_messages
+
+    with occ_messages():  # OpenCascade's reader warnings to the log, not into the summary on stdout
+        report = deviation(vertices, faces, args.shape, samples=args.samples)
     write_json(args.json, report.to_json())
     if args.preview:
         plot_deviation(vertices, faces, report.signed, args.preview, title=Path(args.mesh).name)

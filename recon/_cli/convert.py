@@ -174,8 +174,11 @@ def run(args) -> int:
     for handler in handlers:
         for f in filters:
             handler.addFilter(f)
+    from ..brep._messages import occ_messages
+
     try:
-        return _convert(args, out, progress)
+        with occ_messages():  # OpenCascade's own messages to the log: not into the summary nor the progress line
+            return _convert(args, out, progress)
     finally:  # (main() may run again in this process: a test, a notebook)
         for handler in handlers:
             for f in filters:

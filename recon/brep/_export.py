@@ -29,6 +29,7 @@ from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
 from .._io import atomic_path
 from ..errors import ExportError, InputError
+from ._messages import occ_messages
 from ._result import KIND_COLOURS, BrepResult
 
 __all__ = ["read_step_faces", "write_shape"]
@@ -64,7 +65,8 @@ def _static(settings: dict):
 
 @contextlib.contextmanager
 def _quiet():
-    """OCC's default messenger prints transfer statistics to stdout; the library never prints."""
+    """OCC's default messenger sends transfer statistics (to stdout, or within :func:`occ_messages` to the debug
+    log): none below failures, they are not the user's business."""
     printers = list(Message.DefaultMessenger_s().Printers())
     old = [pr.GetTraceLevel() for pr in printers]
     for pr in printers:
@@ -98,7 +100,7 @@ def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
         colour_tool.SetColor(sub, Quantity_Color(r, g, b, Quantity_TypeOfColor.Quantity_TOC_sRGB),
                              XCAFDoc_ColorType.XCAFDoc_ColorSurf)
     settings = {"write.stepcaf.subshapes.name": 1, "write.step.schema": "AP242DIS", "write.step.unit": "MM"}
-    with _static(settings), _quiet():
+    with _static(settings), occ_messages(), _quiet():
         writer = STEPCAFControl_Writer()
         writer.SetNameMode(True)
         writer.SetColorMode(True)
@@ -135,7 +137,7 @@ def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "rec
     if not isinstance(result, BrepResult):
         raise InputError(f"write_shape: `result` must be a BrepResult, got {type(result).__name__}")
     occ = result.occ
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, occ_messages():
         if suffix in (".step", ".stp"):
             _write_step(tmp, result, name)
         elif suffix in (".brep", ".brp"):
@@ -177,7 +179,7 @@ def read_step_faces(path: str | os.PathLike) -> list[tuple[str | None, tuple[flo
     reader = STEPCAFControl_Reader()
     reader.SetNameMode(True)
     reader.SetColorMode(True)
-    with _static({"read.stepcaf.subshapes.name": 1}), _quiet():
+    with _static({"read.stepcaf.subshapes.name": 1}), occ_messages(), _quiet():
         if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
             raise InputError(f"read_step_faces: cannot read {path} as STEP")
         if not reader.Transfer(doc):
