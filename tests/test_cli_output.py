@@ -183,3 +183,30 @@ def test_occ_warnings_stay_out_of_the_summary_and_stderr(work, capfd, monkeypatc
     captured = capfd.readouterr()
     assert WIRE_WARNING not in captured.out + captured.err
     assert captured.out.startswith("result: within tolerance") and captured.err == "", captured
+
+
+def test_units_inch_declared_in_the_step_and_the_summary(work):
+    """--units inch: the summary's lengths in inches, and the STEP read back by OpenCascade in mm is 25.4 times
+    larger (volume × 25.4³) than the report's volume, which is in the mesh's numbers."""
+    from recon.brep._result import shape_validity
+    from recon.brep._step_read import read_step
+
+    proc = _run(work, "convert", "part.stl", "out.step", "--units", "inch", "--report", "r.json")
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((work / "r.json").read_text())
+    assert re.search(r"\(tolerance [0-9.e+-]+ in\)", proc.stdout) and " in³)" in proc.stdout, proc.stdout
+    assert all(line.count(" in (") == 3 for line in proc.stdout.splitlines() if line.startswith("deviation "))
+    shape, _ = read_step(work / "out.step")
+    assert shape_validity(shape).volume == pytest.approx(report["validity"]["volume"] * 25.4 ** 3, rel=1e-9)
+
+
+def test_iges_output_and_schema_option(work):
+    proc = _run(work, "convert", "part.stl", "out.igs", "--report", "r.json", "--no-deviation")
+    assert proc.returncode == 0, proc.stderr
+    solid = next(r for r in json.loads((work / "r.json").read_text())["verdict"]["rules"] if r["rule"] == "solid")
+    assert solid["ok"] and "out.igs" in solid["detail"]  # read back from the IGES file: one valid closed solid
+    proc = _run(work, "convert", "part.stl", "out.stl", "--schema", "AP214")
+    assert proc.returncode == 2 and proc.stdout == "" and proc.stderr.count("\n") == 1, proc.stderr
+    assert "--schema AP214: a STEP option" in proc.stderr and not (work / "out.stl").exists()
+    proc = _run(work, "convert", "part.stl", "out.step", "--schema", "AP214", "-q")
+    assert proc.returncode == 0 and "AUTOMOTIVE_DESIGN" in (work / "out.step").read_text()[:2000]

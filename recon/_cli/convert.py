@@ -10,7 +10,10 @@ from pathlib import Path
 from ._checks import MAX_DIAGONAL, MIN_DIAGONAL
 from ._format import deviation_line, length, number
 
-OUTPUT_SUFFIXES = (".step", ".stp", ".brep", ".stl")
+OUTPUT_SUFFIXES = (".step", ".stp", ".igs", ".iges", ".brep", ".stl")
+
+#: --units: what the summary calls each unit.
+UNIT_LABELS = {"mm": "mm", "inch": "in", "m": "m"}
 
 
 def add_parser(sub):
@@ -23,8 +26,13 @@ def add_parser(sub):
     p.add_argument("mesh", help="input triangle mesh: STL, OBJ, PLY, OFF, 3MF or GLB; the part's bounding-box "
                    f"diagonal must lie between {MIN_DIAGONAL:g} and {MAX_DIAGONAL:.2g} units (OpenCascade's fixed "
                    "precision)")
-    p.add_argument("out", help="output B-rep; the format follows the extension: .step/.stp (AP242 with face names "
-                   "and colours), .brep (OpenCascade) or .stl (tessellated)")
+    p.add_argument("out", help="output B-rep; the format follows the extension: .step/.stp (AP242 or AP214, with face "
+                   "names and colours), .igs/.iges (IGES 5.3, B-rep solids), .brep (OpenCascade) or .stl (tessellated)")
+    p.add_argument("--units", choices=tuple(UNIT_LABELS), default="mm", help="the unit of the mesh's numbers, which "
+                   "the STEP or IGES file declares so that a CAD program shows the part at its true size; lengths in "
+                   "the summary and the report are in it (default: mm; .brep and .stl files carry no unit)")
+    p.add_argument("--schema", choices=("AP242", "AP214"), default=None, help="STEP application protocol: AP242 "
+                   "(current CAD) or AP214 (older readers); STEP output only (default: AP242)")
     p.add_argument("--report", metavar="R.json", help="write the report (faces by type, deviation, validity, time per "
                    "stage, per-face figures) as JSON")
     p.add_argument("--preview", metavar="P.png", help="write a PNG of the result, faces coloured by kind (patches in "
@@ -161,6 +169,8 @@ def run(args) -> int:
     out = Path(args.out)
     if out.suffix.lower() not in OUTPUT_SUFFIXES:
         raise InputError(f"output {out}: unknown extension {out.suffix!r}; use one of {', '.join(OUTPUT_SUFFIXES)}")
+    if args.schema is not None and out.suffix.lower() not in (".step", ".stp"):
+        raise InputError(f"--schema {args.schema}: a STEP option, and the output {out} is not .step/.stp")
     positive_length("--tolerance", args.tolerance)
     positive_length("--scale", args.scale)
     at_least("--jobs", args.jobs, 1)
@@ -211,7 +221,8 @@ def _convert(args, out: Path, progress: _Progress) -> int:
         jobs=args.jobs,
     )
     result.report["seconds"]["load"] = result.report["seconds"].get("load", 0.0) + t_load
-    verdict = write_checked(result, out, name=out.stem)  # judged on the file as written, read back from disk
+    # judged on the file as written, read back from disk
+    verdict = write_checked(result, out, name=out.stem, units=args.units, schema=args.schema or "AP242")
     if args.report:
         write_json(args.report, result.report)
     if args.preview:
@@ -219,6 +230,6 @@ def _convert(args, out: Path, progress: _Progress) -> int:
 
         render_result(args.preview, result, title=f"{result.report['n_faces']} faces")
     if not args.quiet:  # the result on stdout (`> summary.txt` keeps it); progress and warnings went to stderr
-        print(summary(result.report))
+        print(summary(result.report, unit=UNIT_LABELS[args.units]))
         print(f"wrote {out}", flush=True)
     return 0 if verdict.ok else 1
