@@ -210,3 +210,24 @@ def test_iges_output_and_schema_option(work):
     assert "--schema AP214: a STEP option" in proc.stderr and not (work / "out.stl").exists()
     proc = _run(work, "convert", "part.stl", "out.step", "--schema", "AP214", "-q")
     assert proc.returncode == 0 and "AUTOMOTIVE_DESIGN" in (work / "out.step").read_text()[:2000]
+
+
+@pytest.mark.parametrize("verbose", [False, True])
+def test_a_closed_pipe_ends_the_run_quietly_with_141(work, verbose):
+    """`recon convert … | true`: the reader is gone before the summary is printed. As a Unix tool killed by SIGPIPE:
+    exit 141, nothing on stderr (no traceback, no "Exception ignored", no "Broken pipe"); the output file, written
+    before the summary, is complete."""
+    from cli_harness import step_is_valid_solid
+
+    tmp = work / "tmp"
+    tmp.mkdir(exist_ok=True)
+    args = ["convert", "part.stl", "out.step", *(["-v"] if verbose else [])]
+    proc = subprocess.Popen(cli_command(*args), cwd=work, env={**cli_env(tmp), "RECON_PROGRESS_INTERVAL": "3600"},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()  # the reader goes away at once
+    err = proc.stderr.read()
+    assert proc.wait(timeout=300) == 141, err
+    assert "Traceback" not in err and "Exception ignored" not in err and "Broken pipe" not in err, err
+    assert step_is_valid_solid(work / "out.step") and list(tmp.iterdir()) == []
+    if not verbose:
+        assert err == ""
