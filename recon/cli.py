@@ -3,10 +3,14 @@
 Each subcommand lives in ``recon/_cli/<name>.py`` with ``add_parser(subparsers)`` (which registers the
 parser and sets ``func``) so that stages can add commands without touching each other.
 
+Output: the result's summary goes to stdout (``recon convert a.stl b.step > summary.txt`` keeps it); warnings,
+progress and errors go to stderr; ``-q`` prints errors only.
+
 Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), 2 bad input,
 an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 an
 internal error (a bug: one line, the traceback with ``-v``), 128 + the signal when interrupted (130 SIGINT,
-143 SIGTERM).
+143 SIGTERM), 141 without a word when the reader of stdout or stderr went away (``recon convert … | head -1``: what
+a process killed by SIGPIPE returns, as Unix tools do; the output file is complete, the summary comes after it).
 """
 
 from __future__ import annotations
@@ -24,18 +28,20 @@ import sys
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-__all__ = ["main", "SUBCOMMANDS", "EXIT_OK", "EXIT_NOT_GOOD", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
+__all__ = ["main", "SUBCOMMANDS", "EXIT_OK", "EXIT_NOT_GOOD", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_BROKEN_PIPE"]
 
 #: Subcommand modules under ``recon._cli``, in the order ``recon --help`` lists them.
 SUBCOMMANDS = ["convert", "batch", "decompose", "compare", "skeleton"]
 
 EXIT_OK, EXIT_NOT_GOOD, EXIT_BAD_INPUT, EXIT_INTERNAL = 0, 1, 2, 3
+EXIT_BROKEN_PIPE = 128 + 13  # SIGPIPE's number on Linux and macOS (signal.SIGPIPE is absent on Windows)
 
 log = logging.getLogger("recon")
 
-_EPILOG = ("exit codes: 0 done and good; 1 a result written that is not good (the summary says why); 2 bad input, "
+_EPILOG = ("output: the summary on stdout; warnings, progress and errors on stderr (-q: errors only). "
+           "exit codes: 0 done and good; 1 a result written that is not good (the summary says why); 2 bad input, "
            "option or output path, or not enough memory; 3 internal error (run with -v for the traceback); "
-           "130 interrupted (SIGINT), 143 terminated (SIGTERM)")
+           "130 interrupted (SIGINT), 143 terminated (SIGTERM), 141 the reader of the output went away (| head)")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -48,9 +54,10 @@ class _Parser(argparse.ArgumentParser):
 def _verbosity(parser: argparse.ArgumentParser) -> None:
     group = parser.add_mutually_exclusive_group()
     group.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS,
-                       help="log progress details, and the traceback of an error, to stderr (default: off)")
+                       help="also log the stages' details, and the traceback of an error, to stderr (default: off)")
     group.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-                       help="print errors only (default: off)")
+                       help="print errors only, one line on stderr: no summary on stdout, no progress or warnings "
+                       "(default: off; the exit code still tells the result)")
 
 
 def _version() -> str:
@@ -103,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
         except BaseException as err:  # noqa: BLE001  every error becomes one line; see _one_line
             guard.settle()  # from here a signal is only recorded: the report of this error must get out
             code, line = _one_line(err, guard, verbose)
-            if verbose and guard.signum is None:
+            if verbose and guard.signum is None and not isinstance(err, BrokenPipeError):
                 log.error("traceback:", exc_info=err)
         guard.settle()
         if guard.signum is not None:  # (also a signal whose exception something swallowed: the run stops here)
@@ -147,6 +154,9 @@ def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, st
         return guard.exit_code(), guard.message()
     if isinstance(err, KeyboardInterrupt):
         return 130, "interrupted (SIGINT)"
+    if isinstance(err, BrokenPipeError):
+        _drop_closed_streams()
+        return EXIT_BROKEN_PIPE, ""  # the reader stopped reading: nothing to tell, and nowhere to tell it
     if isinstance(err, ReconError):
         return EXIT_BAD_INPUT, f"error: {err}"
     if isinstance(err, MemoryError) or _out_of_memory(err):  # numpy's _ArrayMemoryError included
@@ -161,6 +171,23 @@ def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, st
         return EXIT_BAD_INPUT, f"error: {err.strerror or _short(err)}:{where}".rstrip(":")
     hint = "the traceback is above" if verbose else "run with -v for the traceback"
     return EXIT_INTERNAL, f"internal error: {type(err).__name__}: {_short(err)} ({hint})"
+
+
+def _drop_closed_streams() -> None:
+    """Point a standard stream whose pipe is closed at /dev/null, so that Python's flush at exit does not print
+    "Exception ignored … BrokenPipeError" (the Python documentation's recipe for SIGPIPE)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except BrokenPipeError:
+            try:
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, stream.fileno())
+                os.close(devnull)
+            except (OSError, ValueError):  # (a stream without a descriptor: pytest's capture, a notebook)
+                pass
+        except (OSError, ValueError):
+            pass
 
 
 def _out_of_memory(err: BaseException) -> bool:

@@ -16,7 +16,7 @@ noise σ along the normals even the true model lies 1.96 σ from 5 % of the mesh
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 import logging
 import os
 import dataclasses
@@ -236,7 +236,8 @@ def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
     return np.sqrt(np.where(inside, np.minimum(dot(q, q), edge), edge))
 
 
-def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None):
+def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
+                  progress: Callable[[int, int, str], None] | None = None):
     """Unsigned distance from each point to a triangle mesh, exact where it can be certified, bounded in cost.
 
     Candidates come from a KD-tree on triangle centroids (the largest triangles split first, see
@@ -257,6 +258,8 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     points : (s, 3) float
     max_candidates : int, optional
         Most triangles measured per point; default :data:`MAX_CANDIDATES`.
+    progress : callable(done, total, what), optional
+        Told the points settled ("points measured"): the near ones at once, then the far ones as they are measured.
 
     Returns
     -------
@@ -309,6 +312,13 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     measure(np.arange(len(p)), min(16, m))
     # 2. the others: every piece within best + reach, nearest-first by that count, within the budgets;
     todo = np.flatnonzero(~exact)
+    settled = len(p) - len(todo)
+
+    def tell(k):
+        if progress is not None:
+            progress(settled + k, len(p), "points measured")
+
+    tell(0)
     if len(todo):
         # Counted in a tree of larger leaves: a ball of best + reach holds thousands of pieces, whole leaves at a
         # time (the same counts, a third faster).
@@ -319,7 +329,7 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
         take, pending = todo[ok], todo[~ok]
         # Measured as if every piece within best + reach were (the budgets keep that cost), but the pieces are
         # looked up by size class, small first: a small piece is only a candidate within best + its radius.
-        _exact_nearest(p, take, count[ok], best, tri, centre, radius, slack)
+        _exact_nearest(p, take, count[ok], best, tri, centre, radius, slack, tell=tell)
         exact[take] = True
         # 3. past the budget: the nearest few pieces give an upper bound (exact only if certified).
         if len(pending):
@@ -327,13 +337,14 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None)
     return best, exact
 
 
-def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: int = 6):
+def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: int = 6, tell=None):
     """Lower ``best[idx]`` to the exact distance from ``p[idx]`` to the pieces ``tri`` (centroids ``centre``,
     radii ``radius``), given that ``best`` already bounds it from above and that at most ``count`` pieces per point
     lie within ``best`` + the largest radius (batches of :data:`_PAIR_CHUNK` such pieces bound the memory).
 
     The pieces go in size classes (radius halving from the largest), each with its own KD-tree; the small ones
     first, so that ``best`` has tightened when the few large ones, looked up over a larger ball, come.
+    ``tell(k)``, optional, is told the first ``k`` points of ``idx`` done.
     """
     from scipy.spatial import cKDTree
 
@@ -363,11 +374,14 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
             sub = best[i]
             np.minimum.at(sub, rows, _point_triangle_distance(q[rows], tri[cols]))
             best[i] = sub
+        if tell is not None:
+            tell(s)
 
 
 def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,
               samples: int | None = None, rng: np.random.Generator | None = None,
-              names: Sequence[str] | None = None) -> DeviationReport:
+              names: Sequence[str] | None = None,
+              progress: Callable[[int, int, str], None] | None = None) -> DeviationReport:
     """Distances from a mesh to a B-rep and back, overall and per face.
 
     Parameters
@@ -387,6 +401,8 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
     names : sequence of str, optional
         A name per face of a shape passed in (not a STEP file), in the shape's face order (``TopExp_Explorer``);
         default ``face_0``, ``face_1``, ….
+    progress : callable(done, total, what), optional
+        Told the points measured ("points measured": the mesh's vertices, then the samples of the B-rep).
 
     Returns
     -------
@@ -432,7 +448,9 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
     area_pts, area_face = brep.surface_samples(DEFAULT_SAMPLES if samples is None else int(samples), rng=rng,
                                                nodes=False)
     pts, pts_face = np.vstack([nodes, area_pts]), np.concatenate([nodes_face, area_face])
-    back, exact = mesh_distance(v, f, pts)
+    total = len(v) + len(pts)
+    tick = None if progress is None else (lambda done, _, what: progress(len(v) + done, total, what))
+    back, exact = mesh_distance(v, f, pts, progress=tick)
     if not len(pts):
         notes.append("shape → mesh: no face of the shape could be triangulated, so nothing was measured")
     if not exact.all():

@@ -19,6 +19,7 @@ from threadpoolctl import threadpool_limits
 
 from .decompose import Decomposition, decompose
 from .errors import BrepError, InputError, ReconError
+from ._progress import Count
 from ._tolerance import tolerance_for
 from .mesh import Mesh, clean_mesh, load_mesh
 from .segment import as_decomposition, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
@@ -104,7 +105,10 @@ def convert(
     deviation : bool
         Measure the deviation between the mesh and the result (both ways) for the report.
     progress : callable(stage, fraction), optional
-        Called with a stage name from :data:`STAGES` and 0.0 when it starts, 1.0 when it ends.
+        Called with a stage name from :data:`STAGES` and 0.0 when it starts, 1.0 when it ends. The fit, brep and
+        deviation stages also call it as their items complete, with a :class:`recon._progress.Count`: a float
+        ``done / total`` (0 < it < 1) of the current step's items that carries ``done``, ``total`` and ``what``
+        ("parts fitted", "faces built", "points measured").
     jobs : int, optional
         Processes the decomposition and the curve network's placement may use (default: the cores available; see
         :func:`recon.decompose.decompose`, :func:`recon.brep.build_solid`).
@@ -114,11 +118,17 @@ def convert(
     Conversion
     """
     from .brep import build_solid  # the CAD kernel loads only when a B-rep is wanted
+    from .brep._messages import occ_messages  # OpenCascade's own messages: to the log, not to stdout
     from .network import curve_network
 
     def step(name, frac):
         if progress is not None:
             progress(name, frac)
+
+    def items(name):  # a stage's items, as Count fractions; 0.0 and 1.0 stay the stage's start and end
+        if progress is None:
+            return None
+        return lambda done, total, what: progress(name, Count(done, total, what)) if 0 < done < total else None
 
     times: dict[str, float] = {}
     t = time.perf_counter()
@@ -155,7 +165,7 @@ def convert(
         dec = as_decomposition(mesh, labels)
     else:
         assert dec is not None  # decomposed above: the exact path found nothing
-        labels, fits = _faces_and_fits(mesh, dec, tolerance)
+        labels, fits = _faces_and_fits(mesh, dec, tolerance, items("fit"))
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)
 
@@ -165,8 +175,10 @@ def convert(
     network = curve_network(mesh.vertices, mesh.faces, labels)
     try:
         areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
-        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
-                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs)
+        with occ_messages():
+            brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
+                               part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
+                               progress=items("brep"))
     except BrepError:
         raise
     times["brep"] = time.perf_counter() - t
@@ -179,7 +191,9 @@ def convert(
         t = time.perf_counter()
         step("deviation", 0.0)
         try:
-            dev = measure(mesh.vertices, mesh.faces, brep.occ, names=_face_names(brep))
+            with occ_messages():
+                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=_face_names(brep),
+                              progress=items("deviation"))
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
             dev_error = str(err)
@@ -220,10 +234,10 @@ def _one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float) -> tuple[np.ndarray, dict]:
+def _faces_and_fits(mesh: Mesh, dec: Decomposition, tolerance: float, progress=None) -> tuple[np.ndarray, dict]:
     """The fit stage: the face label of every triangle and the surface of every face (:func:`recon.segment.segment`)."""
     with _one_blas_thread():
-        return segment(mesh, dec, tolerance=tolerance)
+        return segment(mesh, dec, tolerance=tolerance, progress=progress)
 
 
 def _face_names(brep) -> list[str]:

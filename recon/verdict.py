@@ -528,15 +528,20 @@ def read_back(path: str | os.PathLike) -> dict:
             "n_solids": bodies, "n_shells": max(bodies, 1)}
 
 
-def write_checked(result, path: str | os.PathLike, *, name: str = "recon") -> Verdict:
-    """Write ``result``'s B-rep (:func:`recon.brep.write_shape`), read the file back and judge the ``solid`` and
-    ``volume`` rules on what it holds; ``result.report["verdict"]`` is updated and the new verdict returned."""
+def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units: str = "mm",
+                  schema: str = "AP242") -> Verdict:
+    """Write ``result``'s B-rep (:func:`recon.brep.write_shape`, with its ``units`` and ``schema``), read the file
+    back and judge the ``solid`` and ``volume`` rules on what it holds; ``result.report["verdict"]`` is updated and
+    the new verdict returned."""
     from .brep import write_shape
+    from .brep._export import model_units
 
     # an STL's chords within half the tolerance of the faces: the volume rule holds for the file as for the B-rep
-    path = write_shape(path, result.brep, name=name, deflection=0.5 * float(result.report["tolerance"]))
+    path = write_shape(path, result.brep, name=name, deflection=0.5 * float(result.report["tolerance"]),
+                       units=units, schema=schema)
     old = result.verdict
-    validity = read_back(path)
+    with model_units(units):  # read back in the mesh's unit, the rules' unit
+        validity = read_back(path)
     t = time.perf_counter()
     solid, volume = _file_rules(validity, result.mesh, _sag_of(result.mesh), float(result.report["tolerance"]),
                                 f"the written file {path.name}")

@@ -29,8 +29,8 @@ def test_readme_quick_start_on_the_star(tmp_path, capsys):
     assert len(edges) == len(doc["skeleton"]["vertices"]) - 1  # a tree: no hole, one component
     assert doc["shape"] == str(STAR)
     assert Image.open(png).format == "PNG"
-    err = capsys.readouterr().err
-    assert "3 junction, 5 terminal" in err and err.count("\n") == 1
+    out = capsys.readouterr().out  # the result's line on stdout
+    assert "3 junction, 5 terminal" in out and out.count("\n") == 1
 
 
 def test_options_are_passed_through(tmp_path):

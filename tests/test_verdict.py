@@ -50,7 +50,7 @@ def test_the_12_triangle_cube_is_its_6_planes_or_exit_1(tmp_path, capsys):
     path = tmp_path / "cube.stl"
     trimesh.creation.box((10, 10, 10)).export(path)
     rc, report = _convert(tmp_path, path)
-    _right_or_refused(rc, report, capsys.readouterr().err, planes=6, volume=1000.0)
+    _right_or_refused(rc, report, capsys.readouterr().out, planes=6, volume=1000.0)
     assert (tmp_path / "out.step").is_file()
 
 
@@ -61,7 +61,7 @@ def test_a_quad_faced_obj_cube_is_its_6_planes_or_exit_1(tmp_path, capsys):
     path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in corners) + "".join(f"f {a} {b} {c} {d}\n"
                                                                                   for a, b, c, d in quads))
     rc, report = _convert(tmp_path, path)
-    _right_or_refused(rc, report, capsys.readouterr().err, planes=6, volume=1000.0)
+    _right_or_refused(rc, report, capsys.readouterr().out, planes=6, volume=1000.0)
 
 
 def test_a_hexagonal_prism_of_n_gon_faces_is_its_8_planes_or_exit_1(tmp_path, capsys):
@@ -73,7 +73,7 @@ def test_a_hexagonal_prism_of_n_gon_faces_is_its_8_planes_or_exit_1(tmp_path, ca
     path = tmp_path / "hexagon.obj"
     path.write_text("".join(lines))
     rc, report = _convert(tmp_path, path)
-    _right_or_refused(rc, report, capsys.readouterr().err, planes=8, volume=1.5 * math.sqrt(3) * r * r * h)
+    _right_or_refused(rc, report, capsys.readouterr().out, planes=8, volume=1.5 * math.sqrt(3) * r * r * h)
 
 
 def test_two_overlapping_boxes_exit_1_with_the_reason(tmp_path, capsys):
@@ -83,7 +83,7 @@ def test_two_overlapping_boxes_exit_1_with_the_reason(tmp_path, capsys):
     path = tmp_path / "two.stl"
     trimesh.util.concatenate([a, b]).export(path)
     rc, report = _convert(tmp_path, path)
-    err = capsys.readouterr().err
+    err = capsys.readouterr().out
     assert rc == 1
     rule = next(r for r in report["verdict"]["rules"] if r["rule"] == "overlap")
     assert rule["ok"] is False and rule["value"] == 1
@@ -100,7 +100,7 @@ def test_a_hollow_part_is_not_called_valid(tmp_path, capsys):
     path = tmp_path / "hollow.stl"
     trimesh.util.concatenate([outer, inner]).export(path)
     rc, report = _convert(tmp_path, path)
-    err = capsys.readouterr().err
+    err = capsys.readouterr().out
     if rc == 0:  # (once cavities are built: the hollow part's own volume)
         assert report["validity"]["volume"] == pytest.approx(1000.0 - 64.0, rel=1e-9)
     else:
@@ -119,7 +119,7 @@ def test_the_python_api_carries_the_verdict():
 
 def test_a_good_fixture_is_within_tolerance_exit_0(tmp_path, capsys):
     rc, report = _convert(tmp_path, FIXTURES / "box_fillet_clean.stl")
-    err = capsys.readouterr().err
+    err = capsys.readouterr().out
     assert rc == 0, err
     assert err.splitlines()[0].startswith("result: within tolerance (tolerance ")
     assert report["verdict"]["ok"] and report["verdict"]["within_tolerance"] is True
@@ -133,7 +133,7 @@ def test_a_good_fixture_is_within_tolerance_exit_0(tmp_path, capsys):
 
 def test_without_the_deviation_the_result_is_not_called_within_tolerance(tmp_path, capsys):
     rc, report = _convert(tmp_path, FIXTURES / "box_fillet_clean.stl", "--no-deviation")
-    err = capsys.readouterr().err
+    err = capsys.readouterr().out
     assert rc == 0  # every rule that ran holds; the deviation's are "not checked"
     assert report["verdict"]["within_tolerance"] is None
     assert "within tolerance" not in err and "deviation NOT verified" in err.splitlines()[0]
@@ -144,7 +144,7 @@ def test_without_the_deviation_the_result_is_not_called_within_tolerance(tmp_pat
 @pytest.mark.parametrize("suffix", [".brep", ".stl"])
 def test_the_written_file_is_read_back_in_every_format(tmp_path, capsys, suffix):
     rc, report = _convert(tmp_path, FIXTURES / "box_fillet_clean.stl", "--no-deviation", out=f"out{suffix}")
-    assert rc == 0, capsys.readouterr().err
+    assert rc == 0, capsys.readouterr().out
     solid = next(r for r in report["verdict"]["rules"] if r["rule"] == "solid")
     assert solid["ok"] and f"out{suffix}" in solid["detail"]
     # the box with 3 mm fillets: 30 × 20 × 10 less the fillets' and corners' cut-offs, as the STEP's

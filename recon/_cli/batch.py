@@ -112,6 +112,7 @@ def run(args) -> int:
         show.close()
     statuses = list(rows["status"]) if hasattr(rows, "columns") else [r.status for r in rows]
     counts = ", ".join(f"{statuses.count(s)} {s}" for s in ("ok", "skipped", "invalid", "error") if statuses.count(s))
-    print(f"{len(statuses)} parts in {time.monotonic() - t0:.1f} s: {counts}; summary in {args.out}/summary.csv and "
-          "summary.html", file=sys.stderr)
+    if not args.quiet:  # the result on stdout; the per-part lines above are progress, on stderr
+        print(f"{len(statuses)} parts in {time.monotonic() - t0:.1f} s: {counts}; summary in {args.out}/summary.csv "
+              "and summary.html")
     return 1 if any(s in ("invalid", "error") for s in statuses) else 0

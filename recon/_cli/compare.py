@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 from ._checks import MIN_SAMPLES
-
-log = logging.getLogger(__name__)
+from ._format import deviation_line
 
 
 def add_parser(sub):
@@ -61,10 +59,21 @@ def run(args) -> int:
                   [("--json", args.json), ("--preview", args.preview)])
     _check_step(args.shape)
     vertices, faces = _load_mesh(args.mesh)
-    report = deviation(vertices, faces, args.shape, samples=args.samples)
+    from ..brep._messages import occ_messages
+
+    with occ_messages():  # OpenCascade's reader warnings to the log, not into the summary on stdout
+        report = deviation(vertices, faces, args.shape, samples=args.samples)
     write_json(args.json, report.to_json())
     if args.preview:
         plot_deviation(vertices, faces, report.signed, args.preview, title=Path(args.mesh).name)
-    m = report.mesh_to_shape
-    log.info("mesh → shape: max %.4g (%.3f%%), rms %.4g", m.max, m.pct(m.max), m.rms)
+    if not args.quiet:  # the result on stdout, like convert's summary
+        print(summary(report))
+        print(f"wrote {args.json}", flush=True)
     return 0
+
+
+def summary(report) -> str:
+    """The deviation both ways, one line each (lengths in the unit OpenCascade reads STEP files in: mm)."""
+    data = report.to_json()
+    return "\n".join(deviation_line(way, data[key], data["diagonal"])
+                     for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")))

@@ -8,8 +8,12 @@ import time
 from pathlib import Path
 
 from ._checks import MAX_DIAGONAL, MIN_DIAGONAL
+from ._format import deviation_line, length, number
 
-OUTPUT_SUFFIXES = (".step", ".stp", ".brep", ".stl")
+OUTPUT_SUFFIXES = (".step", ".stp", ".igs", ".iges", ".brep", ".stl")
+
+#: --units: what the summary calls each unit.
+UNIT_LABELS = {"mm": "mm", "inch": "in", "m": "m"}
 
 
 def add_parser(sub):
@@ -22,8 +26,13 @@ def add_parser(sub):
     p.add_argument("mesh", help="input triangle mesh: STL, OBJ, PLY, OFF, 3MF or GLB; the part's bounding-box "
                    f"diagonal must lie between {MIN_DIAGONAL:g} and {MAX_DIAGONAL:.2g} units (OpenCascade's fixed "
                    "precision)")
-    p.add_argument("out", help="output B-rep; the format follows the extension: .step/.stp (AP242 with face names "
-                   "and colours), .brep (OpenCascade) or .stl (tessellated)")
+    p.add_argument("out", help="output B-rep; the format follows the extension: .step/.stp (AP242 or AP214, with face "
+                   "names and colours), .igs/.iges (IGES 5.3, B-rep solids), .brep (OpenCascade) or .stl (tessellated)")
+    p.add_argument("--units", choices=tuple(UNIT_LABELS), default="mm", help="the unit of the mesh's numbers, which "
+                   "the STEP or IGES file declares so that a CAD program shows the part at its true size; lengths in "
+                   "the summary and the report are in it (default: mm; .brep and .stl files carry no unit)")
+    p.add_argument("--schema", choices=("AP242", "AP214"), default=None, help="STEP application protocol: AP242 "
+                   "(current CAD) or AP214 (older readers); STEP output only (default: AP242)")
     p.add_argument("--report", metavar="R.json", help="write the report (faces by type, deviation, validity, time per "
                    "stage, per-face figures) as JSON")
     p.add_argument("--preview", metavar="P.png", help="write a PNG of the result, faces coloured by kind (patches in "
@@ -40,12 +49,15 @@ def add_parser(sub):
 
 
 class _Progress:
-    """One line per stage on stderr (``stream`` None: none): name, then its time when it ends. Between stages it
-    stops a run whose interrupt some library swallowed (see ``recon._cli._signals``)."""
+    """The run's progress on stderr (:class:`recon._progress.StageProgress`: a live line per stage on a terminal,
+    a plain line every few seconds elsewhere; ``stream`` None: none). At every call it stops a run whose interrupt
+    some library swallowed (see ``recon._cli._signals``)."""
 
     def __init__(self, stream):
-        self.stream = stream
-        self.t0 = {}
+        from .._progress import StageProgress, interval_from_env
+
+        self.shown = None if stream is None else StageProgress(stream, tty=stream.isatty(),
+                                                                 interval=interval_from_env())
         self.done = set()  # the CLI loads the mesh itself: convert()'s own "load" stage is not shown again
 
     def __call__(self, stage, frac):
@@ -53,26 +65,29 @@ class _Progress:
 
         if commits_stopped():
             raise KeyboardInterrupt(commits_stopped())
-        if self.stream is None or stage in self.done:
+        if self.shown is None or stage in self.done:
             return
-        if frac == 0.0:
-            self.t0[stage] = time.perf_counter()
-            print(f"  {stage:<10} …", end="", file=self.stream, flush=True)
-        else:
-            print(f" {time.perf_counter() - self.t0[stage]:6.2f} s", file=self.stream, flush=True)
+        self.shown(stage, frac)
+        if frac >= 1.0:
             self.done.add(stage)
 
+    def filter(self, record) -> bool:
+        """A log filter that erases a half-drawn progress line before the message is printed."""
+        if self.shown is not None:
+            self.shown.clear()
+        return True
 
-def summary(report: dict) -> str:
+
+def summary(report: dict, *, unit: str = "mm") -> str:
     """The end-of-run summary: the verdict first (within tolerance or not, and why), then faces by type, validity,
-    deviation, time and warnings. Lengths are in the mesh's units, which the STEP file states as mm."""
+    deviation, time and warnings. Lengths are in the mesh's units, ``unit`` (what the output file declares)."""
     v = report["validity"]
     kinds = ", ".join(f"{n} {t}" for t, n in sorted(report["faces_by_type"].items(), key=lambda kv: -kv[1]))
-    lines = [verdict_line(report)] if "verdict" in report else []
+    lines = [verdict_line(report, unit=unit)] if "verdict" in report else []
     solid = next((r for r in report.get("verdict", {}).get("rules", []) if r["rule"] == "solid"), None)
     if solid is not None:  # what the written file holds, read back (the verdict's own figures)
         v = {**v, **solid["value"], "ok": solid["ok"]}
-    vol = "n/a" if v["volume"] is None else f"{v['volume']:.6g} mm³"
+    vol = "n/a" if v["volume"] is None else f"{number(v['volume'], 6)} {unit}³"
     lines += [
         f"faces: {report['n_faces']} ({kinds})",
         f"solid: {'valid closed solid' if v['ok'] else 'NOT a valid closed solid'} "
@@ -81,10 +96,7 @@ def summary(report: dict) -> str:
     dev = report.get("deviation")
     if dev:
         for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")):
-            m = dev[key]
-            line = (f"deviation {way}: max {_mm(m['max'])} ({_pct(m['max_pct'])}), p95 {_mm(m['p95'])} "
-                    f"({_pct(m['p95_pct'])}), rms {_mm(m['rms'])} ({_pct(m['rms_pct'])}) of diagonal "
-                    f"{_mm(dev['diagonal'])}")
+            line = deviation_line(way, dev[key], dev["diagonal"], unit)
             if key == "shape_to_mesh":
                 # Where the shape leaves the mesh: a face that reaches far out shows here only (mesh→shape
                 # measures from the mesh's points, which all lie near some face).
@@ -103,28 +115,20 @@ def summary(report: dict) -> str:
     return "\n".join(lines)
 
 
-def _mm(x) -> str:
-    return "n/a" if x is None else f"{x:.4g} mm"
-
-
-def _pct(x) -> str:
-    return "n/a" if x is None else f"{x:.3f}%"
-
-
 #: Rules named in the verdict line; the report has all of them.
 VERDICT_RULES = 3
 
 
-def verdict_line(report: dict) -> str:
+def verdict_line(report: dict, *, unit: str = "mm") -> str:
     """One line a CAD user reads at a glance: "within tolerance", "NOT within tolerance (rule …: value vs limit, faces
     …)", or for a run that measured no deviation "deviation NOT verified"."""
     verdict = report["verdict"]
-    tol = f"tolerance {_mm(report['tolerance'])}"
+    tol = f"tolerance {length(report['tolerance'], unit)}"
     failed = [r for r in verdict["rules"] if r["ok"] is False]
     if failed:
         # (a wrong solid is not within tolerance of the part either, whichever rule shows it)
         words = "NOT within tolerance"
-        why = "; ".join(_rule_words(r) for r in failed[:VERDICT_RULES])
+        why = "; ".join(_rule_words(r, unit) for r in failed[:VERDICT_RULES])
         more = f"; and {len(failed) - VERDICT_RULES} more rules" if len(failed) > VERDICT_RULES else ""
         return f"result: {words} ({tol}; {why}{more}); see --report's \"verdict\""
     if verdict["within_tolerance"] is None:
@@ -135,13 +139,13 @@ def verdict_line(report: dict) -> str:
             f"and volume within their limits")
 
 
-def _rule_words(rule: dict) -> str:
+def _rule_words(rule: dict, unit: str) -> str:
     faces = rule["faces"]
     at = f", faces {', '.join(faces[:4])}{' …' if len(faces) > 4 else ''}" if faces else ""
     if isinstance(rule["value"], (int, float)) and isinstance(rule["limit"], (int, float)) \
             and rule["rule"] not in ("coverage", "overlap"):
-        unit = "mm³" if rule["rule"] == "volume" else "mm"
-        return f"rule {rule['rule']}: {rule['value']:.4g} {unit} vs limit {rule['limit']:.4g} {unit}{at}"
+        unit = f"{unit}³" if rule["rule"] == "volume" else unit
+        return f"rule {rule['rule']}: {length(rule['value'], unit)} vs limit {length(rule['limit'], unit)}{at}"
     return f"rule {rule['rule']}: {rule['detail']}{at}"
 
 
@@ -160,29 +164,45 @@ class _RepeatedInSummary:
 
 def run(args) -> int:
     from ..errors import InputError
-    from ._checks import check_outputs, check_size, check_tolerance, positive_length, at_least
+    from ._checks import at_least, check_outputs, positive_length
 
     out = Path(args.out)
     if out.suffix.lower() not in OUTPUT_SUFFIXES:
         raise InputError(f"output {out}: unknown extension {out.suffix!r}; use one of {', '.join(OUTPUT_SUFFIXES)}")
+    if args.schema is not None and out.suffix.lower() not in (".step", ".stp"):
+        raise InputError(f"--schema {args.schema}: a STEP option, and the output {out} is not .step/.stp")
     positive_length("--tolerance", args.tolerance)
     positive_length("--scale", args.scale)
     at_least("--jobs", args.jobs, 1)
     check_outputs([("input mesh", args.mesh)],
                   [("output", args.out), ("--report", args.report), ("--preview", args.preview)])
 
+    # Progress on stderr: a live line on a terminal; elsewhere a line every few seconds, none in a short run.
+    progress = _Progress(None if args.quiet else sys.stderr)
+    filters = [progress] if args.verbose else [_RepeatedInSummary(), progress]
+    handlers = list(logging.getLogger().handlers)
+    for handler in handlers:
+        for f in filters:
+            handler.addFilter(f)
+    from ..brep._messages import occ_messages
+
+    try:
+        with occ_messages():  # OpenCascade's own messages to the log: not into the summary nor the progress line
+            return _convert(args, out, progress)
+    finally:  # (main() may run again in this process: a test, a notebook)
+        for handler in handlers:
+            for f in filters:
+                handler.removeFilter(f)
+
+
+def _convert(args, out: Path, progress: _Progress) -> int:
     from .._io import write_json
+    from ._checks import check_size, check_tolerance
     from ..mesh import load_mesh
     from ..pipeline import convert
     from ..verdict import write_checked
 
-    # Progress lines only on a terminal: piped stderr carries the summary, or one line on error.
-    tty = sys.stderr.isatty() and not args.quiet
-    progress = _Progress(sys.stderr if tty else None)
-    if not args.verbose:
-        for handler in logging.getLogger().handlers:
-            handler.addFilter(_RepeatedInSummary())
-    if tty:
+    if progress.shown is not None and progress.shown.tty:
         print(f"recon convert {args.mesh}", file=sys.stderr)
     # Loaded here, so that the part's size and the tolerance are checked before the work starts.
     t_load = time.perf_counter()
@@ -201,14 +221,15 @@ def run(args) -> int:
         jobs=args.jobs,
     )
     result.report["seconds"]["load"] = result.report["seconds"].get("load", 0.0) + t_load
-    verdict = write_checked(result, out, name=out.stem)  # judged on the file as written, read back from disk
+    # judged on the file as written, read back from disk
+    verdict = write_checked(result, out, name=out.stem, units=args.units, schema=args.schema or "AP242")
     if args.report:
         write_json(args.report, result.report)
     if args.preview:
         from ..preview import render_result
 
         render_result(args.preview, result, title=f"{result.report['n_faces']} faces")
-    if not args.quiet:
-        print(summary(result.report), file=sys.stderr)
-        print(f"wrote {out}", file=sys.stderr)
+    if not args.quiet:  # the result on stdout (`> summary.txt` keeps it); progress and warnings went to stderr
+        print(summary(result.report, unit=UNIT_LABELS[args.units]))
+        print(f"wrote {out}", flush=True)
     return 0 if verdict.ok else 1

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import sys
 import time
 from pathlib import Path
 
@@ -91,11 +90,12 @@ def run(args) -> int:
 
     kinds = {k: sum(p.kind == k for p in result.parts) for k in ("junction", "terminal", "linear")}
     sk = result.skeleton
-    print(
+    if args.quiet:
+        return 0
+    print(  # the result on stdout, like convert's summary
         f"recon skeleton: {args.shape}: {len(sk.vertices)} skeleton vertices, {len(sk.edges)} edges; "
         f"{len(result.parts)} parts ({kinds['junction']} junction, {kinds['terminal']} terminal, "
         f"{kinds['linear']} linear); omega_min {result.omega_min:.4g}, spacing {result.spacing:.4g}; "
         f"{elapsed:.2f} s",
-        file=sys.stderr,
     )
     return 0

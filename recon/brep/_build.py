@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 import os
 import time
+from collections.abc import Callable
 from typing import Mapping
 
 import numpy as np
@@ -40,7 +41,8 @@ log = logging.getLogger(__name__)
 
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 part_kinds: Mapping[int, str] | None = None,
-                part_areas: Mapping[int, float] | None = None, jobs: int | None = None) -> BrepResult:
+                part_areas: Mapping[int, float] | None = None, jobs: int | None = None,
+                progress: Callable[[int, int, str], None] | None = None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
@@ -60,6 +62,8 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     jobs : int, optional
         Processes to place the curve network with (at most two are used; default: the cores available). The
         result does not depend on it.
+    progress : callable(done, total, what), optional
+        Told each part's face built ("faces built").
 
     Returns
     -------
@@ -85,6 +89,8 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         job = _face_job(p, network, geo, surfaces, models, edges, context, tolerance=tolerance,
                         kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_deadline=fill_deadline)
         records.append(build_face(job, warnings))
+        if progress is not None:
+            progress(len(records), len(network.parts), "faces built")
     records, faces = _faces_now(records, context)
     if not records:
         raise BrepError("the curve network has no part with a boundary (one part covers the whole mesh): "

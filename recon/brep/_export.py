@@ -1,4 +1,4 @@
-"""Writing the B-rep: STEP AP242 with a name and colour per face (XCAF), BREP, STL.
+"""Writing the B-rep: STEP (AP242 or AP214) with a name and colour per face (XCAF), IGES, BREP, STL.
 
 Per-face names and colours survive a STEP round trip only through XCAF sub-shapes (measured, see
 shared/OCP-NOTES.md): ``XCAFDoc_ShapeTool.AddSubShape`` + ``TDataStd_Name`` + ``XCAFDoc_ColorTool.SetColor(...,
@@ -11,9 +11,11 @@ import contextlib
 import logging
 import os
 from pathlib import Path
+from typing import Literal
 
 from OCP.BRepMesh import BRepMesh_IncrementalMesh
 from OCP.BRepTools import BRepTools
+from OCP.IGESControl import IGESControl_Controller, IGESControl_Reader, IGESControl_Writer
 from OCP.IFSelect import IFSelect_ReturnStatus
 from OCP.Interface import Interface_Static
 from OCP.Message import Message, Message_Gravity
@@ -29,13 +31,26 @@ from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
 from .._io import atomic_path
 from ..errors import ExportError, InputError
+from ._messages import occ_messages
 from ._result import KIND_COLOURS, BrepResult
 
-__all__ = ["read_step_faces", "write_shape"]
+__all__ = ["SCHEMAS", "UNITS", "model_units", "read_iges", "read_step_faces", "write_shape"]
 
 log = logging.getLogger(__name__)
 
-_SUFFIXES = (".step", ".stp", ".brep", ".brp", ".stl")
+_SUFFIXES = (".step", ".stp", ".igs", ".iges", ".brep", ".brp", ".stl")
+
+Units = Literal["mm", "inch", "m"]
+Schema = Literal["AP214", "AP242"]
+
+#: The units a mesh's numbers can be in: OpenCascade's STEP name, its IGES name, and metres per unit. A file
+#: declares it and keeps the numbers: a CAD program then shows the part at its true size.
+UNITS: dict[str, tuple[str, str, float]] = {"mm": ("MM", "MM", 0.001), "inch": ("INCH", "IN", 0.0254),
+                                            "m": ("M", "M", 1.0)}
+
+#: STEP application protocols: AP242 (recon's default: what current CAD reads, with PMI and face names) or AP214
+#: (what older readers take), as OpenCascade's ``write.step.schema`` names them.
+SCHEMAS: dict[str, str] = {"AP214": "AP214IS", "AP242": "AP242DIS"}
 
 
 @contextlib.contextmanager
@@ -64,7 +79,8 @@ def _static(settings: dict):
 
 @contextlib.contextmanager
 def _quiet():
-    """OCC's default messenger prints transfer statistics to stdout; the library never prints."""
+    """OCC's default messenger sends transfer statistics (to stdout, or within :func:`occ_messages` to the debug
+    log): none below failures, they are not the user's business."""
     printers = list(Message.DefaultMessenger_s().Printers())
     old = [pr.GetTraceLevel() for pr in printers]
     for pr in printers:
@@ -76,12 +92,29 @@ def _quiet():
             pr.SetTraceLevel(lvl)
 
 
+@contextlib.contextmanager
+def model_units(units: Units = "mm"):
+    """Within it, OpenCascade's STEP and IGES readers give lengths in ``units`` (``xstep.cascade.unit``, which is
+    process-global): a file written with ``write_shape(..., units=units)`` reads back with the numbers it was given."""
+    _check_units(units, "model_units")
+    IGESControl_Controller.Init_s()
+    with _static({"xstep.cascade.unit": UNITS[units][0]}):
+        yield
+
+
+def _check_units(units: str, where: str) -> None:
+    if units not in UNITS:
+        raise InputError(f"{where}: `units` must be one of {', '.join(UNITS)}, got {units!r}")
+
+
 def _occ(shape):
     return getattr(shape, "wrapped", shape)
 
 
-def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
+def _write_step(tmp: Path, result: BrepResult, name: str, units: str, schema: str) -> None:
     doc = TDocStd_Document(TCollection_ExtendedString("XmlOcaf"))
+    # the document's length unit: the shape's numbers are in `units`, and the file says so (no scaling)
+    XCAFDoc_DocumentTool.SetLengthUnit_s(doc, UNITS[units][2])
     shape_tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     colour_tool = XCAFDoc_DocumentTool.ColorTool_s(doc.Main())
     root = shape_tool.AddShape(result.occ, False)
@@ -97,8 +130,9 @@ def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
         r, g, b = KIND_COLOURS.get(rec.kind, KIND_COLOURS["patch"])
         colour_tool.SetColor(sub, Quantity_Color(r, g, b, Quantity_TypeOfColor.Quantity_TOC_sRGB),
                              XCAFDoc_ColorType.XCAFDoc_ColorSurf)
-    settings = {"write.stepcaf.subshapes.name": 1, "write.step.schema": "AP242DIS", "write.step.unit": "MM"}
-    with _static(settings), _quiet():
+    settings = {"write.stepcaf.subshapes.name": 1, "write.step.schema": SCHEMAS[schema],
+                "write.step.unit": UNITS[units][0]}
+    with _static(settings), occ_messages(), _quiet():
         writer = STEPCAFControl_Writer()
         writer.SetNameMode(True)
         writer.SetColorMode(True)
@@ -109,8 +143,23 @@ def _write_step(tmp: Path, result: BrepResult, name: str) -> None:
         raise ExportError(f"cannot write STEP: writer returned {status}")
 
 
-def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "recon", deflection: float = 0.01) -> Path:
-    """Write a B-rep result; the format follows the extension (.step/.stp, .brep, .stl).
+def _write_iges(tmp: Path, occ, units: str) -> None:
+    IGESControl_Controller.Init_s()
+    writer = IGESControl_Writer(UNITS[units][1], 1)  # 1: BRep mode (faces, shells, solids), not trimmed surfaces
+    # the model's own length unit, in mm (OpenCascade's default): the shape's numbers are in `units`, not scaled
+    section = writer.Model().GlobalSection()
+    section.SetCascadeUnit(1000.0 * UNITS[units][2])
+    writer.Model().SetGlobalSection(section)
+    if not writer.AddShape(occ):
+        raise ExportError(f"cannot write {tmp.name}: IGESControl_Writer.AddShape failed")
+    writer.ComputeModel()
+    if not writer.Write(str(tmp)):
+        raise ExportError(f"cannot write {tmp.name}: IGESControl_Writer.Write failed")
+
+
+def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "recon", deflection: float = 0.01,
+                units: Units = "mm", schema: Schema = "AP242") -> Path:
+    """Write a B-rep result; the format follows the extension (.step/.stp, .igs/.iges, .brep, .stl).
 
     Parameters
     ----------
@@ -122,6 +171,11 @@ def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "rec
         Product name in the STEP file.
     deflection : float
         Linear deflection of the STL tessellation (model units).
+    units : "mm", "inch" or "m"
+        The unit of the shape's numbers (the mesh's), which a STEP or IGES file declares: a CAD program shows the part
+        at its true size. BREP and STL files carry no unit.
+    schema : "AP242" or "AP214"
+        The STEP application protocol (:data:`SCHEMAS`).
 
     Returns
     -------
@@ -134,10 +188,15 @@ def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "rec
         raise InputError(f"write_shape: `path` must end in one of {', '.join(_SUFFIXES)}, got {path.name!r}")
     if not isinstance(result, BrepResult):
         raise InputError(f"write_shape: `result` must be a BrepResult, got {type(result).__name__}")
+    _check_units(units, "write_shape")
+    if schema not in SCHEMAS:
+        raise InputError(f"write_shape: `schema` must be one of {', '.join(SCHEMAS)}, got {schema!r}")
     occ = result.occ
-    with atomic_path(path) as tmp:
+    with atomic_path(path) as tmp, occ_messages():
         if suffix in (".step", ".stp"):
-            _write_step(tmp, result, name)
+            _write_step(tmp, result, name, units, schema)
+        elif suffix in (".igs", ".iges"):
+            _write_iges(tmp, occ, units)
         elif suffix in (".brep", ".brp"):
             if not BRepTools.Write_s(occ, str(tmp)):
                 raise ExportError(f"cannot write {path}: BRepTools.Write failed")
@@ -150,6 +209,23 @@ def write_shape(path: str | os.PathLike, result: BrepResult, *, name: str = "rec
                 raise ExportError(f"cannot write {path}: StlAPI_Writer failed")
     log.info("wrote %s", path)
     return path
+
+
+def read_iges(path: str | os.PathLike):
+    """The shape of an IGES file (its roots; one shape or a compound), in :func:`model_units`' unit (default mm)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"IGES file {path} does not exist")
+    IGESControl_Controller.Init_s()
+    reader = IGESControl_Reader()
+    with occ_messages(), _quiet():
+        if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
+            raise InputError(f"{path} could not be read as IGES")
+        reader.TransferRoots()
+    shape = reader.OneShape()
+    if shape.IsNull():
+        raise InputError(f"IGES file {path} holds no shape")
+    return shape
 
 
 def _label_name(label: TDF_Label) -> str | None:
@@ -177,7 +253,7 @@ def read_step_faces(path: str | os.PathLike) -> list[tuple[str | None, tuple[flo
     reader = STEPCAFControl_Reader()
     reader.SetNameMode(True)
     reader.SetColorMode(True)
-    with _static({"read.stepcaf.subshapes.name": 1}), _quiet():
+    with _static({"read.stepcaf.subshapes.name": 1}), occ_messages(), _quiet():
         if reader.ReadFile(str(path)) != IFSelect_ReturnStatus.IFSelect_RetDone:
             raise InputError(f"read_step_faces: cannot read {path} as STEP")
         if not reader.Transfer(doc):

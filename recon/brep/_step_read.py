@@ -145,9 +145,9 @@ def read_step(path: str | os.PathLike) -> tuple[TopoDS_Shape, tuple[str, ...]]:
 
 
 def read_back_validity(path: str | os.PathLike):
-    """The :class:`recon.brep.Validity` of a written ``.step``/``.stp`` or ``.brep`` file, read back from disk: what a
-    CAD program that opens it gets, not the shape in memory (a part scaled far out of OpenCascade's precision was
-    valid in memory and invalid in its STEP file)."""
+    """The :class:`recon.brep.Validity` of a written ``.step``/``.stp``, ``.igs``/``.iges`` or ``.brep`` file, read
+    back from disk: what a CAD program that opens it gets, not the shape in memory (a part scaled far out of
+    OpenCascade's precision was valid in memory and invalid in its STEP file)."""
     from OCP.BRepTools import BRepTools
 
     from ._build import shape_validity
@@ -157,6 +157,10 @@ def read_back_validity(path: str | os.PathLike):
         shape = TopoDS_Shape()
         if not BRepTools.Read_s(shape, str(path), BRep_Builder()):
             raise InputError(f"BREP file {path} could not be read back")
+    elif path.suffix.lower() in (".igs", ".iges"):
+        from ._export import read_iges
+
+        shape = read_iges(path)
     else:
         shape, _ = read_step(path)
     return shape_validity(shape)

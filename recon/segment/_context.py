@@ -132,18 +132,25 @@ def exact_vertices(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> bool:
     return bool(scales) and float(np.median(scales)) <= EXACT_RESIDUAL * ctx.tolerance
 
 
-def fit_parts(labels: np.ndarray, ctx: SegmentContext, *, only=None, upto: str | None = None) -> dict[int, SurfaceFit]:
+def fit_parts(labels: np.ndarray, ctx: SegmentContext, *, only=None, upto: str | None = None,
+              progress=None) -> dict[int, SurfaceFit]:
     """One surface per label (or per label in ``only``), fitted to the label's vertices with their normals.
 
     ``upto``: try only the analytic types up to this one (in :func:`recon.fit.fit_surface`'s order) and no
     B-spline — the same answer whenever the full fit would give one of those types, at a fraction of the cost.
+    ``progress(done, total, "parts fitted")``, optional, is told each part fitted.
     """
     if only is not None and len(only) * 8 < labels.max() + 1:  # a few faces: no sort of all the labels
         return {p: fit_members(np.flatnonzero(labels == p), p, upto, ctx) for p in only}
     order = stable_argsort(labels, labels.max() + 1)
     bounds = np.searchsorted(labels[order], np.arange(labels.max() + 2))
-    return {p: fit_members(order[bounds[p] : bounds[p + 1]], p, upto, ctx)
-            for p in (range(labels.max() + 1) if only is None else only)}
+    parts = range(labels.max() + 1) if only is None else only
+    fits = {}
+    for k, p in enumerate(parts, 1):
+        fits[p] = fit_members(order[bounds[p] : bounds[p + 1]], p, upto, ctx)
+        if progress is not None:
+            progress(k, len(parts), "parts fitted")
+    return fits
 
 
 def fit_members(members: np.ndarray, p: int, upto: str | None, ctx: SegmentContext) -> SurfaceFit:

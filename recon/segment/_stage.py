@@ -77,7 +77,12 @@ def describe(passes: tuple[Step, ...] = PASSES) -> str:
     return "\n".join(lines)
 
 
-def segment(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> tuple[np.ndarray, dict]:
+#: ``progress(done, total, what)``: a stage's items as they complete (see :func:`recon.convert`'s ``progress``).
+Tick = Callable[[int, int, str], None]
+
+
+def segment(mesh: Mesh, dec: Decomposition, *, tolerance: float, progress: Tick | None = None
+            ) -> tuple[np.ndarray, dict]:
     """The face label of every triangle and the surface of every face (the fit stage of :func:`recon.convert`).
 
     Parameters
@@ -86,6 +91,8 @@ def segment(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> tuple[np.nda
     dec : Decomposition
         The decomposition of ``mesh``; its noise σ decides whether the mesh is noise-free.
     tolerance : float
+    progress : callable(done, total, what), optional
+        Told the parts fitted, then the refinement passes run.
 
     Returns
     -------
@@ -95,23 +102,31 @@ def segment(mesh: Mesh, dec: Decomposition, *, tolerance: float) -> tuple[np.nda
     """
     ctx = SegmentContext.of(mesh, tolerance, sigma=float(dec.noise))
     labels = face_labels(dec, ctx)
-    return refine(labels, fit_parts(labels, ctx), ctx)
+    return refine(labels, fit_parts(labels, ctx, progress=progress), ctx, progress=progress)
 
 
-def refine(labels: np.ndarray, fits: dict, ctx: SegmentContext, passes: tuple[Step, ...] = PASSES
-           ) -> tuple[np.ndarray, dict]:
+def refine(labels: np.ndarray, fits: dict, ctx: SegmentContext, passes: tuple[Step, ...] = PASSES, *,
+           progress: Tick | None = None) -> tuple[np.ndarray, dict]:
     """Run ``passes`` over ``labels`` (with their ``fits``): after every pass that changed the labels they are
-    tidied (:func:`recon.segment.tidy`) and every face refitted. Returns the final labels and fits."""
-    for step in passes:
+    tidied (:func:`recon.segment.tidy`) and every face refitted. Returns the final labels and fits.
+    ``progress(done, total, "refinement passes")`` counts the passes, rounds not run as if run."""
+    budget = [s.times * len(s.passes) if isinstance(s, Rounds) else 1 for s in passes]
+    total, done = sum(budget), 0
+    for step, n in zip(passes, budget):
         if isinstance(step, Rounds):
-            for _ in range(step.times):
+            for r in range(step.times):
                 changed, labels, fits = _run(step.passes[0], labels, fits, ctx)
                 if not changed:
                     break
                 for p in step.passes[1:]:
                     _, labels, fits = _run(p, labels, fits, ctx)
+                if progress is not None:
+                    progress(done + (r + 1) * len(step.passes), total, "refinement passes")
         else:
             _, labels, fits = _run(step, labels, fits, ctx)
+        done += n
+        if progress is not None:
+            progress(done, total, "refinement passes")
     return labels, fits
 
 
