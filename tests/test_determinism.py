@@ -91,3 +91,70 @@ def test_same_result_as_on_another_machine(tmp_path):
     assert va == pytest.approx(vb, rel=1e-12)  # (the STEP text below is the stricter test: 12 digits each number)
     assert step_a == step_b, f"STEP geometry differs: first {first_difference(step_a, step_b)}"
 
+
+
+def test_build_decides_by_counts_not_by_the_clock():
+    """The face strategies and the filling fallback read no clock: a budget in seconds let a loaded or slower machine
+    fill fewer parts (crank: patch_23's second MakeFilling got the 0.2 s its first left of a shared 5 s)."""
+    import recon.brep._build
+    import recon.brep._filling
+    import recon.brep._strategies
+
+    for module in (recon.brep._build, recon.brep._filling, recon.brep._strategies):
+        source = Path(module.__file__).read_text()
+        assert not any(clock in source for clock in ("monotonic", "perf_counter", "time.time")), module.__name__
+
+
+def test_filling_calls_are_counted_per_build(monkeypatch):
+    """Each MakeFilling call takes one of the build's :data:`FILLING_ATTEMPTS`; none left, none is made."""
+    import numpy as np
+
+    from recon.brep import _filling
+
+    calls = []
+
+    def through(loops, edges, points, normals, context, *, precision, timeout):
+        calls.append(len(points))
+        return "face", 5.0, "filled", ""  # 5× the part's area: the second point set is wanted
+
+    monkeypatch.setattr(_filling, "fallback_face_through", through)
+    pts = np.zeros((48, 3))
+    budget = _filling.FillingBudget(3)
+    first = _filling.fallback_face([], [], pts, pts, None, precision=1e-3, expected_area=1.0, budget=budget)
+    second = _filling.fallback_face([], [], pts, pts, None, precision=1e-3, expected_area=1.0, budget=budget)
+    third = _filling.fallback_face([], [], pts, pts, None, precision=1e-3, expected_area=1.0, budget=budget)
+    assert calls == [16, 48, 16] and budget.left == 0
+    assert first[0] == second[0] == "face"
+    assert third[0] is None and "MakeFilling calls are spent" in third[3]
+
+
+def test_a_safety_time_limit_that_fires_fails_the_part(monkeypatch):
+    """A child killed at its time limit (a hang, or a slow machine): the part fails, reported, instead of taking the
+    next strategy's face, which a faster machine would not have taken; and the build's fillings stop."""
+    import time
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from recon._parallel import isolated
+    from recon.brep import _strategies
+    from recon.brep._filling import FillingBudget
+
+    def hangs(job, message):
+        isolated(time.sleep, 30, timeout=0.05, what="a hanging call")
+        return _strategies._none("it hung")
+
+    def would_build(job, message):
+        return _strategies.Attempt("face", 1.0, _strategies.FaceStatus.OK, message)
+
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", (hangs, would_build))
+    job = _strategies.FaceJob(
+        part=0, name="patch_0", kind="patch", model=SimpleNamespace(kind="plane"), fit=None, fit_ok=True, near=False, loops=[],
+        points=np.zeros((0, 3)), normals=np.zeros((0, 3)), vote=1, network=None, geo=None, edges=[], context=None,
+        tolerance=0.01, expected_area=None, fill_budget=FillingBudget(72))
+    warnings: list[str] = []
+    rec = _strategies.build_face(job, warnings)
+    assert rec.status == "failed" and rec.face is None and "time limit" in rec.message
+    assert job.fill_budget.left == 0 and any("time limit" in w for w in warnings)
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", (would_build,))
+    assert _strategies.build_face(job, []).face == "face"  # (without the hang, the same part gets its face)
