@@ -80,6 +80,9 @@ class Conversion:
         return Verdict.from_json(self.report["verdict"])
 
 
+# BLAS on one thread throughout (issue 25): a reduction split over threads sums in another order, and the result must
+# not depend on the machine's core count (bench/determinism.md).
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def convert(
     mesh: Mesh | str | os.PathLike | tuple[npt.ArrayLike, npt.ArrayLike],
     *,

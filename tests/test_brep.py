@@ -323,7 +323,7 @@ def test_no_face_at_all_is_one_clear_error(sharp_box, monkeypatch):
     from recon.errors import BrepError
     from recon.fit import SurfaceFit
 
-    monkeypatch.setattr(_build, "FILLING_BUDGET", 0.0)
+    monkeypatch.setattr(_build, "FILLING_ATTEMPTS", 0)
     v, f, lab = sharp_box
     none = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0, ok=False, reason="test")
     with pytest.raises(BrepError, match="none of the 6 parts got a face"):

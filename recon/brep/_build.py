@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 import os
-import time
 from collections.abc import Callable
 from typing import Mapping
 
@@ -27,7 +26,7 @@ from ..network import OUTSIDE, CurveNetwork, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
 from ._edges import fix_edges, shared_topology
 from ._faces import near_enough, orientation_vote
-from ._filling import FILLING_BUDGET
+from ._filling import FILLING_ATTEMPTS, FillingBudget
 from ._match import match_faces
 from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity, shape_validity
 from ._shell import assemble, mend_faces, whole_fixed
@@ -82,12 +81,12 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     geo = _placed_network(network, surfaces, models, tolerance, jobs)
     edges = shared_topology(network, geo, warnings)
     context = ShapeBuild_ReShape()
-    fill_deadline = time.monotonic() + FILLING_BUDGET
+    fill_budget = FillingBudget(FILLING_ATTEMPTS)  # (counted, not timed: the same on every machine, issue 25)
     kinds, areas = dict(part_kinds or {}), dict(part_areas or {})
     records = []
     for p in network.parts.tolist():
         job = _face_job(p, network, geo, surfaces, models, edges, context, tolerance=tolerance,
-                        kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_deadline=fill_deadline)
+                        kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_budget=fill_budget)
         records.append(build_face(job, warnings))
         if progress is not None:
             progress(len(records), len(network.parts), "faces built")
@@ -160,7 +159,7 @@ def _placed_network(network: CurveNetwork, surfaces: Mapping, models: Mapping, t
 
 
 def _face_job(p: int, network: CurveNetwork, geo: NetworkGeometry, surfaces: Mapping, models: Mapping, edges: list,
-              context, *, tolerance: float, kind: str, expected_area: float | None, fill_deadline: float) -> FaceJob:
+              context, *, tolerance: float, kind: str, expected_area: float | None, fill_budget: FillingBudget) -> FaceJob:
     model = models[p]
     pts, nrm = network.part_samples(p)
     fit_ok = _fit_ok(surfaces, models, p)
@@ -171,7 +170,7 @@ def _face_job(p: int, network: CurveNetwork, geo: NetworkGeometry, surfaces: Map
         loops=[network.loop(j) for j in network.part_loops(p)], points=pts, normals=nrm,
         vote=orientation_vote(model, pts, nrm) if model is not None else 1,
         network=network, geo=geo, edges=edges, context=context, tolerance=tolerance, expected_area=expected_area,
-        fill_deadline=fill_deadline,
+        fill_budget=fill_budget,
     )
 
 
