@@ -166,7 +166,8 @@ def convert(
     try:
         areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
         brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
-                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs)
+                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
+                           mesh_points=mesh.vertices)
     except BrepError:
         raise
     times["brep"] = time.perf_counter() - t

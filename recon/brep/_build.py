@@ -25,7 +25,7 @@ from OCP.TopoDS import TopoDS
 from ..network import OUTSIDE, CurveNetwork, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
 from ._edges import fix_edges, shared_topology
-from ._faces import near_enough, orientation_vote
+from ._faces import Reach, near_enough, orientation_vote
 from ._filling import FILLING_BUDGET
 from ._match import match_faces
 from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity, shape_validity
@@ -40,7 +40,8 @@ log = logging.getLogger(__name__)
 
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 part_kinds: Mapping[int, str] | None = None,
-                part_areas: Mapping[int, float] | None = None, jobs: int | None = None) -> BrepResult:
+                part_areas: Mapping[int, float] | None = None, jobs: int | None = None,
+                mesh_points=None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
@@ -60,6 +61,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     jobs : int, optional
         Processes to place the curve network with (at most two are used; default: the cores available). The
         result does not depend on it.
+    mesh_points : (n, 3) float, optional
+        The mesh's vertices (or its bounding box's corners): a face reaching farther than :func:`._faces.reach_margin`
+        outside their box is refused. Default: the network's polylines and part samples.
 
     Returns
     -------
@@ -80,10 +84,14 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     context = ShapeBuild_ReShape()
     fill_deadline = time.monotonic() + FILLING_BUDGET
     kinds, areas = dict(part_kinds or {}), dict(part_areas or {})
+    if mesh_points is None:  # (a part's extremes between its samples are missed by far less than the margin)
+        mesh_points = np.concatenate([network.coords.reshape(-1, 3), network.samples.reshape(-1, 3)])
+    reach = Reach.of(mesh_points, tolerance)
     records = []
     for p in network.parts.tolist():
         job = _face_job(p, network, geo, surfaces, models, edges, context, tolerance=tolerance,
                         kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_deadline=fill_deadline)
+        job.reach = reach
         records.append(build_face(job, warnings))
     records, faces = _faces_now(records, context)
     if not records:
