@@ -25,7 +25,7 @@ from OCP.TopoDS import TopoDS
 from ..network import OUTSIDE, CurveNetwork, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
 from ._edges import fix_edges, shared_topology
-from ._faces import near_enough, orientation_vote
+from ._faces import Reach, near_enough, orientation_vote
 from ._filling import FILLING_ATTEMPTS, FillingBudget
 from ._match import match_faces
 from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity, shape_validity
@@ -41,7 +41,7 @@ log = logging.getLogger(__name__)
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 part_kinds: Mapping[int, str] | None = None,
                 part_areas: Mapping[int, float] | None = None, jobs: int | None = None,
-                progress: Callable[[int, int, str], None] | None = None) -> BrepResult:
+                progress: Callable[[int, int, str], None] | None = None, mesh_points=None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
@@ -63,6 +63,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         result does not depend on it.
     progress : callable(done, total, what), optional
         Told each part's face built ("faces built").
+    mesh_points : (n, 3) float, optional
+        The mesh's vertices (or its bounding box's corners): a face reaching farther than :func:`._faces.reach_margin`
+        outside their box is refused. Default: the network's polylines and part samples.
 
     Returns
     -------
@@ -83,10 +86,14 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     context = ShapeBuild_ReShape()
     fill_budget = FillingBudget(FILLING_ATTEMPTS)  # (counted, not timed: the same on every machine, issue 25)
     kinds, areas = dict(part_kinds or {}), dict(part_areas or {})
+    if mesh_points is None:  # (a part's extremes between its samples are missed by far less than the margin)
+        mesh_points = np.concatenate([network.coords.reshape(-1, 3), network.samples.reshape(-1, 3)])
+    reach = Reach.of(mesh_points, tolerance)
     records = []
     for p in network.parts.tolist():
         job = _face_job(p, network, geo, surfaces, models, edges, context, tolerance=tolerance,
                         kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_budget=fill_budget)
+        job.reach = reach
         records.append(build_face(job, warnings))
         if progress is not None:
             progress(len(records), len(network.parts), "faces built")

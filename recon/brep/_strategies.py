@@ -23,7 +23,7 @@ import numpy as np
 from .._parallel import time_limits_fired
 from ..network import CurveNetwork, NetworkGeometry
 from ..errors import BrepError
-from ._faces import face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
+from ._faces import Reach, face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
 from ._filling import AREA_RATIO_WARNING, FILLING_TIMEOUT, FillingBudget, fallback_face
 from ._result import FaceRecord, FaceStatus
 from ._seam import face_with_seam_split
@@ -57,6 +57,7 @@ class FaceJob:
     tolerance: float
     expected_area: float | None
     fill_budget: FillingBudget  # (shared by the build's parts)
+    reach: Reach | None = None  # a face reaching beyond it is refused and the next strategy tried
 
 
 @dataclass(frozen=True)
@@ -207,6 +208,10 @@ def build_face(job: FaceJob, warnings: list) -> FaceRecord:
             job.fill_budget.left = 0  # (the build has failed: no more fillings, each of which could hang as long)
             warnings.append(f"{job.name}: no face ({message})")
             break
+        refused = job.reach.refusal(got.face) if got.face is not None and job.reach is not None else ""
+        if refused:
+            got = _none(_join(message, f"{strategy.__name__}: {refused}"))
+            message = got.message
         if got.face is not None:
             warnings.extend(got.warnings)
             break
