@@ -41,6 +41,9 @@ PARENT_POLL = 0.5
 #: What each :func:`isolated` child killed at its time limit in this process was doing, in order.
 _TIMED_OUT: list[str] = []
 
+#: The process this module was imported in: a forked child inherits its parent's, a spawned child has its own.
+_IMPORTED_IN = os.getpid()
+
 
 def time_limits_fired() -> int:
     """How many :func:`isolated` children this process has killed at their time limit so far.
@@ -119,6 +122,17 @@ def _become_child(parent: int) -> None:
     if hasattr(signal, "SIGTERM"):
         signal.signal(signal.SIGTERM, signal.SIG_DFL)  # not the parent's handler (it may clean the parent's files)
     _die_with(parent)
+    if _IMPORTED_IN == os.getpid():
+        _one_blas_thread()
+
+
+def _one_blas_thread() -> None:
+    """BLAS on one thread in a spawned child, as in its parent (``recon.pipeline.convert``; a forked child inherits
+    it): a sum split over threads rounds otherwise, and which process computes an item must not matter (issue 25)."""
+    os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")  # (BLAS loaded later)
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")  # (BLAS loaded already, with the function's module)
 
 
 def _run_one(conn, parent: int, fn: Callable, args: tuple) -> None:

@@ -149,7 +149,8 @@ def test_a_safety_time_limit_that_fires_fails_the_part(monkeypatch):
 
     monkeypatch.setitem(_strategies.ORDERS, "own surface", (hangs, would_build))
     job = _strategies.FaceJob(
-        part=0, name="patch_0", kind="patch", model=SimpleNamespace(kind="plane"), fit=None, fit_ok=True, near=False, loops=[],
+        part=0, name="patch_0", kind="patch", model=SimpleNamespace(kind="plane"), fit=None, fit_ok=True, near=False,
+        loops=[],
         points=np.zeros((0, 3)), normals=np.zeros((0, 3)), vote=1, network=None, geo=None, edges=[], context=None,
         tolerance=0.01, expected_area=None, fill_budget=FillingBudget(72))
     warnings: list[str] = []
@@ -158,3 +159,19 @@ def test_a_safety_time_limit_that_fires_fails_the_part(monkeypatch):
     assert job.fill_budget.left == 0 and any("time limit" in w for w in warnings)
     monkeypatch.setitem(_strategies.ORDERS, "own surface", (would_build,))
     assert _strategies.build_face(job, []).face == "face"  # (without the hang, the same part gets its face)
+
+
+def _blas_threads() -> list:
+    from threadpoolctl import threadpool_info
+
+    return sorted({i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"})
+
+
+def test_a_spawned_child_runs_blas_on_one_thread_as_its_parent(monkeypatch):
+    """Under spawn (macOS, Windows) a child is a fresh interpreter: without its own pin its BLAS would take the
+    machine's threads while the parent (``convert()``) takes one, and an item would round by who computed it."""
+    from recon._parallel import isolated
+
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")  # (what a fresh interpreter would take on this 2-core machine)
+    assert isolated(_blas_threads, timeout=120, method="spawn") == [1]
+    assert isolated(_blas_threads, timeout=120, method="fork") == _blas_threads()  # (forked: the parent's own)

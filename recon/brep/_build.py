@@ -166,7 +166,8 @@ def _placed_network(network: CurveNetwork, surfaces: Mapping, models: Mapping, t
 
 
 def _face_job(p: int, network: CurveNetwork, geo: NetworkGeometry, surfaces: Mapping, models: Mapping, edges: list,
-              context, *, tolerance: float, kind: str, expected_area: float | None, fill_budget: FillingBudget) -> FaceJob:
+              context, *, tolerance: float, kind: str, expected_area: float | None,
+              fill_budget: FillingBudget) -> FaceJob:
     model = models[p]
     pts, nrm = network.part_samples(p)
     fit_ok = _fit_ok(surfaces, models, p)
