@@ -394,6 +394,9 @@ def _deviation_rules(report: dict, sag: np.ndarray, area: np.ndarray, labels: np
     rules = [_limit_rule("mesh_to_shape_p95", m2s.get("p95"), T, "mesh→shape p95"),
              _limit_rule("mesh_to_shape_max", m2s.get("max"), k * T, "mesh→shape max"),
              _limit_rule("shape_to_mesh_p95", s2m.get("p95"), T + sag95, "shape→mesh p95")]
+    if sag95 > T:  # say what the limit holds: between its vertices the mesh pins the faces only to T + its sag
+        rules[-1] = replace(rules[-1], detail=f"{rules[-1].detail} (T {_g(T)} mm + the mesh's chord sag {_g(sag95)} mm: "
+                            "between its vertices the mesh does not pin the faces closer than that)")
     # Face by face: its largest distance from the mesh against k·T plus the largest sag of its triangles and of their
     # neighbours across its boundary: the face's edge lies on the true edge, off the mesh's polygon by the sag of the
     # curved face on the other side (a plane capping a coarse cylinder overhangs its polygon by the cylinder's sag).
