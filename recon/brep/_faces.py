@@ -75,7 +75,8 @@ def reach_margin(tolerance: float, diagonal: float) -> float:
 
 
 #: A face whose optimal box passes the margin is triangulated to bound it closer only when that box lies within this
-#: many diagonals of the mesh: a face farther out is wild anyway, and meshing it costs minutes (bench/brep.md).
+#: many diagonals of the mesh (scales with the part's size): a face farther out is wild anyway, and meshing a face
+#: reaching 1e8 diagonals out took minutes and gigabytes (the deviation's BRepMesh, bench/brep.md "REACH").
 REACH_MESHED = 10.0
 
 
