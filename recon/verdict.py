@@ -46,9 +46,9 @@ __all__ = ["Rule", "Verdict", "judge", "triangle_sag", "overlapping_shells", "re
 log = logging.getLogger(__name__)
 
 #: The rules in the order the report lists them.
-RULES = ("solid", "coverage", "overlap", "mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95",
-         "shape_to_mesh_max", "volume", "meshable")
-_DEVIATION_RULES = RULES[3:7]
+RULES = ("solid", "coverage", "meshable", "overlap", "mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95",
+         "shape_to_mesh_max", "volume")
+_DEVIATION_RULES = ("mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95", "shape_to_mesh_max")
 
 #: k: the largest deviation allowed is k·T. The fit stage accepts a surface with its max within 2T; with the default
 #: T = 4σ that is 8σ, and the max of |N(0, σ)| over 10⁷ points passes 5.5σ with probability 1 − exp(−10⁷ · 3.8e-8)
@@ -517,10 +517,11 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
     sag = _sag_of(mesh)
     solid, volume, meshable = _file_rules(validity, mesh, sag, tolerance, source,
                                           validity.get("unmeshed_faces", report.get("unmeshed_faces")))
-    rules = [solid, _coverage_rule(report, labels),
+    # (a defect of the shape, meshable comes before the figures: the summary names the first failed rules)
+    rules = [solid, _coverage_rule(report, labels), meshable,
              overlap if overlap is not None else _overlap_rule(mesh, labels, report, tolerance)]
     rules += _deviation_rules(report, sag, mesh.face_areas, labels, mesh.face_adjacency, tolerance, deviation_error)
-    rules += [volume, meshable]
+    rules.append(volume)
     verdict = Verdict(tuple(rules), time.perf_counter() - t)
     for r in verdict.failed:
         log.info("rule %s failed: %s", r.rule, r.detail)
