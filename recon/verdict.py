@@ -451,14 +451,14 @@ def _volume_rule(validity: dict, mesh, sag: np.ndarray, tolerance: float, closed
 
 
 def _meshable_rule(unmeshed: list | None, source: str) -> Rule:
+    # (short words: the batch summary's one line holds every failed rule; the settings are in unmeshed_faces' docs)
     if unmeshed is None:
         return Rule("meshable", None, None, None, (), "not checked")
-    settings = "at FreeCAD's display settings (BRepMesh: deflection 0.5 % of the box's mean side, 28.5°)"
     if not unmeshed:
-        return Rule("meshable", True, None, None, (), f"every face of {source} triangulates {settings}")
+        return Rule("meshable", True, None, None, (), f"every face of {source} meshes at FreeCAD's display settings")
+    n = len(unmeshed)
     return Rule("meshable", False, None, None, tuple(unmeshed),
-                f"{len(unmeshed)} face{'s' if len(unmeshed) > 1 else ''} of {source} get no triangles {settings}: "
-                "FreeCAD shows a hole there")
+                f"{n} face{'s get' if n > 1 else ' gets'} no triangles at FreeCAD's display settings (a hole there)")
 
 
 def unmeshed_names(shape, names) -> list[str]:
