@@ -46,9 +46,9 @@ __all__ = ["Rule", "Verdict", "judge", "triangle_sag", "overlapping_shells", "re
 log = logging.getLogger(__name__)
 
 #: The rules in the order the report lists them.
-RULES = ("solid", "coverage", "overlap", "mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95",
-         "shape_to_mesh_max", "volume", "meshable")
-_DEVIATION_RULES = RULES[3:7]
+RULES = ("solid", "coverage", "meshable", "overlap", "mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95",
+         "shape_to_mesh_max", "volume")
+_DEVIATION_RULES = ("mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95", "shape_to_mesh_max")
 
 #: k: the largest deviation allowed is k·T. The fit stage accepts a surface with its max within 2T; with the default
 #: T = 4σ that is 8σ, and the max of |N(0, σ)| over 10⁷ points passes 5.5σ with probability 1 − exp(−10⁷ · 3.8e-8)
@@ -394,6 +394,9 @@ def _deviation_rules(report: dict, sag: np.ndarray, area: np.ndarray, labels: np
     rules = [_limit_rule("mesh_to_shape_p95", m2s.get("p95"), T, "mesh→shape p95"),
              _limit_rule("mesh_to_shape_max", m2s.get("max"), k * T, "mesh→shape max"),
              _limit_rule("shape_to_mesh_p95", s2m.get("p95"), T + sag95, "shape→mesh p95")]
+    if sag95 > T:  # say what the limit holds: between its vertices the mesh pins the faces only to T + its sag
+        rules[-1] = replace(rules[-1], detail=f"{rules[-1].detail} (T {_g(T)} mm + the mesh's chord sag {_g(sag95)} mm: "
+                            "between its vertices the mesh does not pin the faces closer than that)")
     # Face by face: its largest distance from the mesh against k·T plus the largest sag of its triangles and of their
     # neighbours across its boundary: the face's edge lies on the true edge, off the mesh's polygon by the sag of the
     # curved face on the other side (a plane capping a coarse cylinder overhangs its polygon by the cylinder's sag).
@@ -448,14 +451,14 @@ def _volume_rule(validity: dict, mesh, sag: np.ndarray, tolerance: float, closed
 
 
 def _meshable_rule(unmeshed: list | None, source: str) -> Rule:
+    # (short words: the batch summary's one line holds every failed rule; the settings are in unmeshed_faces' docs)
     if unmeshed is None:
         return Rule("meshable", None, None, None, (), "not checked")
-    settings = "at FreeCAD's display settings (BRepMesh: deflection 0.5 % of the box's mean side, 28.5°)"
     if not unmeshed:
-        return Rule("meshable", True, None, None, (), f"every face of {source} triangulates {settings}")
+        return Rule("meshable", True, None, None, (), f"every face of {source} meshes at FreeCAD's display settings")
+    n = len(unmeshed)
     return Rule("meshable", False, None, None, tuple(unmeshed),
-                f"{len(unmeshed)} face{'s' if len(unmeshed) > 1 else ''} of {source} get no triangles {settings}: "
-                "FreeCAD shows a hole there")
+                f"{n} face{'s get' if n > 1 else ' gets'} no triangles at FreeCAD's display settings (a hole there)")
 
 
 def unmeshed_names(shape, names) -> list[str]:
@@ -514,10 +517,11 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
     sag = _sag_of(mesh)
     solid, volume, meshable = _file_rules(validity, mesh, sag, tolerance, source,
                                           validity.get("unmeshed_faces", report.get("unmeshed_faces")))
-    rules = [solid, _coverage_rule(report, labels),
+    # (a defect of the shape, meshable comes before the figures: the summary names the first failed rules)
+    rules = [solid, _coverage_rule(report, labels), meshable,
              overlap if overlap is not None else _overlap_rule(mesh, labels, report, tolerance)]
     rules += _deviation_rules(report, sag, mesh.face_areas, labels, mesh.face_adjacency, tolerance, deviation_error)
-    rules += [volume, meshable]
+    rules.append(volume)
     verdict = Verdict(tuple(rules), time.perf_counter() - t)
     for r in verdict.failed:
         log.info("rule %s failed: %s", r.rule, r.detail)

@@ -74,6 +74,12 @@ def reach_margin(tolerance: float, diagonal: float) -> float:
     return 2.0 * tolerance + 0.5 * float(np.tan(REACH_TURN / 4.0)) * diagonal
 
 
+#: A face whose optimal box passes the margin is triangulated to bound it closer only when that box lies within this
+#: many diagonals of the mesh (scales with the part's size): a face farther out is wild anyway, and meshing a face
+#: reaching 1e8 diagonals out took minutes and gigabytes (the deviation's BRepMesh, bench/brep.md "REACH").
+REACH_MESHED = 10.0
+
+
 @dataclass(frozen=True)
 class Reach:
     """The box a part's face must stay within: the mesh's bounding box ``lo``..``hi`` grown by ``margin``."""
@@ -92,11 +98,21 @@ class Reach:
     def outside(self, face) -> float:
         """How far ``face`` reaches outside the mesh's box (≤ 0 within it), from a box that holds it.
 
-        OpenCascade's quick box of a face holds a B-spline's poles or a surface's whole patch: only when that one
-        passes the margin is the optimal box (an optimisation on the surface, slower) computed to confirm it.
+        OpenCascade's quick box of a face holds a B-spline's poles, its optimal box the surface over the face's whole
+        UV rectangle (a band across a torus: the torus's far side): each is only an upper bound, so a face past the
+        margin by one is bounded again, finer. Last, a face that is not wild (within :data:`REACH_MESHED` diagonals)
+        is triangulated at a quarter of the margin, and its nodes grown by that deflection bound it.
         """
         far = self._beyond(face, optimal=False)
-        return far if far <= self.margin else self._beyond(face, optimal=True)
+        if far > self.margin:
+            far = self._beyond(face, optimal=True)
+        if self.margin < far <= REACH_MESHED * self.diagonal:
+            far = min(far, self._beyond_meshed(face))
+        return far
+
+    @property
+    def diagonal(self) -> float:
+        return float(np.linalg.norm(self.hi - self.lo))
 
     def refusal(self, face) -> str:
         """Why ``face`` is refused for reaching too far outside the mesh, or "" when it stays within the margin."""
@@ -105,6 +121,9 @@ class Reach:
             return ""
         return (f"its face reaches {far:.4g} outside the mesh's bounding box (more than the margin {self.margin:.4g}: "
                 "a surface left untrimmed or a filling gone wild); refused")
+
+    def _box_beyond(self, x0, y0, z0, x1, y1, z1) -> float:
+        return float(max(np.max(self.lo - np.array([x0, y0, z0])), np.max(np.array([x1, y1, z1]) - self.hi)))
 
     def _beyond(self, face, *, optimal: bool) -> float:
         box = Bnd_Box()
@@ -115,12 +134,30 @@ class Reach:
                 BRepBndLib.Add_s(face, box, False)
         except Exception:  # noqa: BLE001  (OCC cannot bound the face: it reaches nowhere measurable)
             return float("inf")
-        if box.IsVoid():
+        if box.IsVoid() or box.IsOpen():  # no box, or an infinite face
             return float("inf")
-        if box.IsOpen():  # an infinite face
+        return self._box_beyond(*box.Get())
+
+    def _beyond_meshed(self, face) -> float:
+        """The face's reach from its triangulation at a quarter of the margin (on a copy: the face keeps none)."""
+        from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+        from OCP.BRepMesh import BRepMesh_IncrementalMesh
+        from OCP.TopLoc import TopLoc_Location
+
+        deflection = 0.25 * self.margin
+        try:
+            copy = TopoDS.Face_s(BRepBuilderAPI_Copy(face, True, False).Shape())
+            BRepMesh_IncrementalMesh(copy, deflection, False, 0.5, False)
+            loc = TopLoc_Location()
+            tri = BRep_Tool.Triangulation_s(copy, loc)
+        except Exception:  # noqa: BLE001  (OCC cannot mesh it: the boxes above stand)
             return float("inf")
-        x0, y0, z0, x1, y1, z1 = box.Get()
-        return float(max(np.max(self.lo - np.array([x0, y0, z0])), np.max(np.array([x1, y1, z1]) - self.hi)))
+        if tri is None or tri.NbNodes() == 0:
+            return float("inf")
+        trsf = loc.Transformation()
+        nodes = np.array([[(p := tri.Node(i).Transformed(trsf)).X(), p.Y(), p.Z()]
+                          for i in range(1, tri.NbNodes() + 1)])
+        return self._box_beyond(*nodes.min(axis=0), *nodes.max(axis=0)) + deflection
 
 
 def near_enough(fit, tolerance: float) -> bool:

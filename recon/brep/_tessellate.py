@@ -20,9 +20,10 @@ __all__ = ["labelled_tessellation", "result_tessellation", "display_deflection",
 log = logging.getLogger(__name__)
 
 #: FreeCAD's display tessellation (Part view provider, its defaults): linear deflection ``Deviation`` = 0.5 % of the
-#: mean side of the shape's bounding box ((dx + dy + dz) / 300 × 0.5), angular deflection 28.5°, absolute, in
+#: mean side of the shape's bounding box ((dx + dy + dz) / 300 × 0.5: scales with the part's size), absolute, in
 #: parallel. A face that gets no triangles there shows as a hole in FreeCAD (issue 25).
 DISPLAY_DEVIATION = 0.005
+#: FreeCAD's default ``AngularDeflection`` (a fixed angle: the turn between facets, scale-free)
 DISPLAY_ANGLE = float(np.deg2rad(28.5))
 
 
