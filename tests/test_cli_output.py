@@ -11,6 +11,7 @@ import subprocess
 import pytest
 
 from cli_harness import FIXTURES, cli_command, cli_env
+from test_export import occ_prints_warnings  # noqa: F401  (a fixture)
 
 SMALL = "prism_coarse.stl"  # 264 triangles: the quickest fixture that converts
 SUMMARY_HEADS = ("result: ", "faces: ", "solid: ", "deviation mesh→shape: ", "deviation shape→mesh: ", "time: ")
@@ -164,7 +165,7 @@ def test_plain_progress_waits_for_the_interval_and_a_terminal_redraws_one_line()
     assert Count(1, 4, "x") == 0.25 and isinstance(Count(1, 4, "x"), float)  # a plain callback reads a fraction
 
 
-def test_occ_warnings_stay_out_of_the_summary_and_stderr(work, capfd, monkeypatch):
+def test_occ_warnings_stay_out_of_the_summary_and_stderr(work, capfd, monkeypatch, occ_prints_warnings):
     """An OpenCascade warning during the B-rep stage (a filling's broken wire, see test_export) is neither in the
     summary on stdout nor on stderr: it goes to the debug log."""
     import recon.brep
