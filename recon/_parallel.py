@@ -31,12 +31,25 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
-__all__ = ["Failure", "FailureKind", "Worker", "isolated", "shared_map", "start_method"]
+__all__ = ["Failure", "FailureKind", "Worker", "isolated", "shared_map", "start_method", "time_limits_fired"]
 
 log = logging.getLogger(__name__)
 
 #: Seconds between two looks at the parent's pid, where the kernel cannot be asked to kill the child with it.
 PARENT_POLL = 0.5
+
+#: What each :func:`isolated` child killed at its time limit in this process was doing, in order.
+_TIMED_OUT: list[str] = []
+
+
+def time_limits_fired() -> int:
+    """How many :func:`isolated` children this process has killed at their time limit so far.
+
+    A time limit is a safety net against a call that hangs; where it fires, what comes next depends on the machine's
+    speed (issue 25). A caller whose result must not compares the count before and after its calls, and fails.
+    (:class:`Worker`'s and :func:`shared_map`'s limits are not counted: the parent redoes the work, the same result.)
+    """
+    return len(_TIMED_OUT)
 
 
 class FailureKind(enum.Enum):
@@ -186,6 +199,7 @@ def isolated(fn: Callable[..., Any], *args: Any, timeout: float, what: str = "",
     try:
         # A child that ends closes its end of the pipe: poll() is True then too, with nothing to read.
         if not recv.poll(max(0.0, timeout)):
+            _TIMED_OUT.append(what)
             return Failure(FailureKind.TIMED_OUT, f"{what} did not finish within {timeout:g} s")
         try:
             answer = recv.recv()
@@ -343,7 +357,8 @@ def shared_map(one: Callable[[int], Any], n: int, *, grace: float, method: str |
         while (i := _take(counter, lock)) < n:
             made[i] = one(i)
         now = time.monotonic()
-        # it has one item left at most: waiting longer than this process took for all of its own means it hangs
+        # it has one item left at most: waiting longer than this process took for all of its own means it hangs.
+        # (Time decides only which process makes an item, never its value: the map is the same on any machine.)
         give_up = now + max(grace, 2.0 * (now - start))
         while True:
             if recv.poll(0.01):  # 10 ms: the answer's latency, far below any face build

@@ -20,13 +20,19 @@ import errno
 import importlib
 import logging
 import os
+import platform
 import sys
 
 # Before anything imports numpy: one BLAS thread unless the user chose. recon's linear algebra is small (fits of
 # a few thousand points) and it uses a second process instead; OpenBLAS reserves a buffer per thread at import,
-# which under a memory limit (ulimit -v) fails and leaves it spinning.
+# which under a memory limit (ulimit -v) fails and leaves it spinning. (recon's work pins one thread whatever this.)
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+# The same arithmetic on every x86-64 CPU (issue 25, bench/determinism.md): OpenBLAS's and numpy's per-CPU kernels
+# round differently (a Xeon's AVX-512, an EPYC's AVX2); Nehalem's kernels and numpy's baseline loops run on all.
+if platform.machine().lower() in ("x86_64", "amd64"):
+    os.environ.update(OPENBLAS_CORETYPE="Nehalem", NPY_ENABLE_CPU_FEATURES="SSE2")
+    os.environ.pop("NPY_DISABLE_CPU_FEATURES", None)  # (numpy refuses both set)
 
 __all__ = ["main", "SUBCOMMANDS", "EXIT_OK", "EXIT_NOT_GOOD", "EXIT_BAD_INPUT", "EXIT_INTERNAL", "EXIT_BROKEN_PIPE"]
 

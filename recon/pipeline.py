@@ -80,6 +80,9 @@ class Conversion:
         return Verdict.from_json(self.report["verdict"])
 
 
+# BLAS on one thread throughout (issue 25): a reduction split over threads sums in another order, and the result must
+# not depend on the machine's core count (bench/determinism.md).
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def convert(
     mesh: Mesh | str | os.PathLike | tuple[npt.ArrayLike, npt.ArrayLike],
     *,
@@ -178,7 +181,7 @@ def convert(
         with occ_messages():
             brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
                                part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
-                               progress=items("brep"))
+                               progress=items("brep"), mesh_points=mesh.vertices)
     except BrepError:
         raise
     times["brep"] = time.perf_counter() - t
@@ -267,7 +270,7 @@ def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
 def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error=None) -> dict:
     """The conversion's figures as strict JSON data (no NaN or infinity: None where a figure does not exist), with
     the verdict of :func:`recon.verdict.judge` on the result in memory (the command line judges the written file)."""
-    from .verdict import judge, strict_json
+    from .verdict import judge, strict_json, unmeshed_names
 
     diag = float(mesh.diagonal)
     val = brep.validity
@@ -325,6 +328,7 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error=None
     if dev_error:
         report["deviation_error"] = dev_error
         report["warnings"].append(f"deviation not measured: {dev_error}")
+    report["unmeshed_faces"] = unmeshed_names(brep.occ, _face_names(brep))  # FreeCAD would show holes there
     report = strict_json(report)
     report["verdict"] = judge(report, mesh, labels, source="the result in memory",
                               deviation_error=dev_error).to_json()

@@ -19,6 +19,9 @@ each rule with its figure, its limit and the faces where it fails. T is the tole
 * ``volume``: |V_shape − V_mesh| ≤ Σ area_t · (T + sag_t) over the triangles, for a closed mesh: the volume between
   two surfaces within T + sag of each other. It holds whenever the two-way bound holds, and it still checks a run
   that skipped the deviation (``deviation=False``).
+* ``meshable``: every face gets triangles from OpenCascade's mesher at FreeCAD's display settings
+  (:func:`recon.brep._tessellate.unmeshed_faces`): a face without them shows as a hole in FreeCAD and in any viewer
+  that meshes the same way.
 
 Without a measured deviation the four deviation rules are "not checked" (``ok`` None): the verdict is then ``ok``
 when every other rule holds, and ``within_tolerance`` is None, never True.
@@ -38,13 +41,13 @@ from typing import Any
 import numpy as np
 
 __all__ = ["Rule", "Verdict", "judge", "triangle_sag", "overlapping_shells", "read_back", "write_checked",
-           "strict_json", "MAX_PER_TOLERANCE", "SMOOTH_TURN", "RULES"]
+           "strict_json", "unmeshed_names", "MAX_PER_TOLERANCE", "SMOOTH_TURN", "RULES"]
 
 log = logging.getLogger(__name__)
 
 #: The rules in the order the report lists them.
 RULES = ("solid", "coverage", "overlap", "mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95",
-         "shape_to_mesh_max", "volume")
+         "shape_to_mesh_max", "volume", "meshable")
 _DEVIATION_RULES = RULES[3:7]
 
 #: k: the largest deviation allowed is k·T. The fit stage accepts a surface with its max within 2T; with the default
@@ -73,11 +76,13 @@ def _sag_of(mesh) -> np.ndarray:
     return _SAGS[mesh]
 
 
-def _file_rules(validity: dict, mesh, sag: np.ndarray, tolerance: float, source: str) -> tuple[Rule, Rule]:
-    """The rules that judge what was built or written: ``solid`` and ``volume``."""
+def _file_rules(validity: dict, mesh, sag: np.ndarray, tolerance: float, source: str,
+                unmeshed: list | None) -> tuple[Rule, Rule, Rule]:
+    """The rules that judge what was built or written: ``solid``, ``volume`` and ``meshable``."""
     closed = mesh.report.boundary_edges == 0
     return (_solid_rule(validity, not closed, source),
-            _volume_rule(validity, mesh, sag, tolerance, closed and mesh.report.non_manifold_edges == 0))
+            _volume_rule(validity, mesh, sag, tolerance, closed and mesh.report.non_manifold_edges == 0),
+            _meshable_rule(unmeshed, source))
 
 
 # --------------------------------------------------------------------------------------------------
@@ -442,6 +447,28 @@ def _volume_rule(validity: dict, mesh, sag: np.ndarray, tolerance: float, closed
     return Rule("volume", ok, diff, limit, (), detail)
 
 
+def _meshable_rule(unmeshed: list | None, source: str) -> Rule:
+    if unmeshed is None:
+        return Rule("meshable", None, None, None, (), "not checked")
+    settings = "at FreeCAD's display settings (BRepMesh: deflection 0.5 % of the box's mean side, 28.5°)"
+    if not unmeshed:
+        return Rule("meshable", True, None, None, (), f"every face of {source} triangulates {settings}")
+    return Rule("meshable", False, None, None, tuple(unmeshed),
+                f"{len(unmeshed)} face{'s' if len(unmeshed) > 1 else ''} of {source} get no triangles {settings}: "
+                "FreeCAD shows a hole there")
+
+
+def unmeshed_names(shape, names) -> list[str]:
+    """The names (``names``, in :func:`recon.brep._step_read.faces_of` order) of the faces of ``shape`` that get no
+    triangles at FreeCAD's display settings (:func:`recon.brep._tessellate.unmeshed_faces`)."""
+    from .brep._tessellate import unmeshed_faces
+
+    t = time.perf_counter()
+    out = [names[i] if i < len(names) else f"face_{i}" for i in unmeshed_faces(shape)]
+    log.info("meshable: %d faces without triangles at FreeCAD's settings (%.3f s)", len(out), time.perf_counter() - t)
+    return out
+
+
 def _weighted_percentile(values: np.ndarray, weights: np.ndarray, q: float) -> float:
     if not len(values):
         return 0.0
@@ -485,11 +512,12 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
     validity = report["validity"] if validity is None else validity
     labels = np.asarray(labels)
     sag = _sag_of(mesh)
-    solid, volume = _file_rules(validity, mesh, sag, tolerance, source)
+    solid, volume, meshable = _file_rules(validity, mesh, sag, tolerance, source,
+                                          validity.get("unmeshed_faces", report.get("unmeshed_faces")))
     rules = [solid, _coverage_rule(report, labels),
              overlap if overlap is not None else _overlap_rule(mesh, labels, report, tolerance)]
     rules += _deviation_rules(report, sag, mesh.face_areas, labels, mesh.face_adjacency, tolerance, deviation_error)
-    rules.append(volume)
+    rules += [volume, meshable]
     verdict = Verdict(tuple(rules), time.perf_counter() - t)
     for r in verdict.failed:
         log.info("rule %s failed: %s", r.rule, r.detail)
@@ -504,17 +532,21 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
 def read_back(path: str | os.PathLike) -> dict:
     """The validity of a written result, read back from disk (the report's ``validity`` keys).
 
-    ``.step``/``.stp`` through OpenCascade's STEP reader, ``.brep`` through BRepTools, ``.stl`` as a mesh (trimesh,
-    vertices merged): closed when watertight, valid when consistently wound, with the volume it encloses.
+    ``.step``/``.stp`` through OpenCascade's STEP reader, ``.igs``/``.iges`` its IGES reader, ``.brep`` BRepTools, ``.stl`` as a mesh (trimesh,
+    vertices merged): closed when watertight, valid when consistently wound, with the volume it encloses. A B-rep
+    file's ``unmeshed_faces`` are the names of its faces that get no triangles at FreeCAD's display settings (as a
+    program that opens the file meshes it); an STL has none to list.
     """
     path = Path(path)
     if path.suffix.lower() != ".stl":
-        from .brep._step_read import read_back_validity
+        from .brep import shape_validity
+        from .brep._step_read import read_back_shape
 
-        val = read_back_validity(path)
+        shape, names = read_back_shape(path)
+        val = shape_validity(shape)
         return {"shape_type": val.shape_type, "valid": bool(val.valid), "closed": bool(val.closed),
                 "free_edges": int(val.free_edges), "volume": float(val.volume), "n_solids": int(val.n_solids),
-                "n_shells": int(val.n_shells)}
+                "n_shells": int(val.n_shells), "unmeshed_faces": unmeshed_names(shape, names)}
     import trimesh
 
     tm = trimesh.load(str(path), force="mesh")
@@ -531,8 +563,8 @@ def read_back(path: str | os.PathLike) -> dict:
 def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units: str = "mm",
                   schema: str = "AP242") -> Verdict:
     """Write ``result``'s B-rep (:func:`recon.brep.write_shape`, with its ``units`` and ``schema``), read the file
-    back and judge the ``solid`` and ``volume`` rules on what it holds; ``result.report["verdict"]`` is updated and
-    the new verdict returned."""
+    back and judge the ``solid``, ``volume`` and ``meshable`` rules on what it holds (an STL keeps the B-rep's
+    ``meshable``: it holds no faces); ``result.report["verdict"]`` is updated and the new verdict returned."""
     from .brep import write_shape
     from .brep._export import model_units
 
@@ -543,9 +575,11 @@ def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units
     with model_units(units):  # read back in the mesh's unit, the rules' unit
         validity = read_back(path)
     t = time.perf_counter()
-    solid, volume = _file_rules(validity, result.mesh, _sag_of(result.mesh), float(result.report["tolerance"]),
-                                f"the written file {path.name}")
-    verdict = replace(old.with_rules(solid, volume), seconds=old.seconds + time.perf_counter() - t)
+    solid, volume, meshable = _file_rules(validity, result.mesh, _sag_of(result.mesh),
+                                          float(result.report["tolerance"]), f"the written file {path.name}",
+                                          validity.get("unmeshed_faces"))
+    rules = (solid, volume) if "unmeshed_faces" not in validity else (solid, volume, meshable)
+    verdict = replace(old.with_rules(*rules), seconds=old.seconds + time.perf_counter() - t)
     result.report["verdict"] = verdict.to_json()
     return verdict
 

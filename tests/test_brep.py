@@ -323,7 +323,7 @@ def test_no_face_at_all_is_one_clear_error(sharp_box, monkeypatch):
     from recon.errors import BrepError
     from recon.fit import SurfaceFit
 
-    monkeypatch.setattr(_build, "FILLING_BUDGET", 0.0)
+    monkeypatch.setattr(_build, "FILLING_ATTEMPTS", 0)
     v, f, lab = sharp_box
     none = SurfaceFit("plane", {}, {"max": np.nan, "rms": np.nan, "p99": np.nan}, 0, ok=False, reason="test")
     with pytest.raises(BrepError, match="none of the 6 parts got a face"):
@@ -708,3 +708,44 @@ def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
     monkeypatch.setattr(_faces, "own_curves_face", on_mesh_only)
     res = _sewn_cylinder()
     assert sum("built on its mesh boundary" in w for w in res.warnings) == 3
+
+
+def test_a_face_reaching_far_outside_the_mesh_is_refused_and_the_next_way_tried(sharp_box, monkeypatch):
+    """export seed 13: planes on sliver parts came out untrimmed, 1.4e10 mm from a 130 mm mesh (volume 4.9e20), and
+    the deviation took 185 s and 6.4 GB measuring them. A face reaching beyond the mesh's box by more than the
+    margin (2T + a tenth of the diagonal) is refused; the part's next strategy gives the box's own side."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+    from OCP.gp import gp_Pln
+
+    from recon.brep import _strategies
+
+    huge = BRepBuilderAPI_MakeFace(gp_Pln(), -1e10, 1e10, -1e10, 1e10).Face()
+
+    def untrimmed(job, message):
+        if job.part != 4:
+            return _strategies._none(message)
+        return _strategies.Attempt(huge, 4e20, _strategies.FaceStatus.OK, message)
+
+    order = _strategies.ORDERS["own surface"]
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", (untrimmed, *order))
+    v, f, lab = sharp_box
+    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01)
+    rec = {r.part: r for r in res.faces}
+    assert "untrimmed: its face reaches 1e+10 outside the mesh's bounding box" in rec[4].message
+    assert res.ok and res.validity.n_faces == 6 and res.validity.volume == pytest.approx(6000.0, rel=1e-5)
+
+
+def test_reach_margin_and_box():
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+    from OCP.gp import gp_Pln
+
+    from recon.brep._faces import Reach, reach_margin
+
+    # 2T + tan(45°/4)/2 × the diagonal: the chord sag across the largest smooth turn of the longest chord
+    assert reach_margin(0.01, 100.0) == pytest.approx(0.02 + 9.9456, rel=1e-4)
+    reach = Reach.of(np.array([[0, 0, 0], [30, 20, 10]], float), 0.01)
+    inside = BRepBuilderAPI_MakeFace(gp_Pln(), 0.0, 30.0, 0.0, 20.0).Face()
+    beyond = BRepBuilderAPI_MakeFace(gp_Pln(), 0.0, 30.0 + 1.1 * reach.margin, 0.0, 20.0).Face()
+    assert reach.outside(inside) <= 1e-6 and reach.refusal(inside) == ""
+    assert reach.outside(beyond) == pytest.approx(1.1 * reach.margin, rel=1e-6) and "refused" in reach.refusal(beyond)
+    assert reach.outside(BRepBuilderAPI_MakeFace(gp_Pln()).Face()) >= 1e100  # an infinite plane (OCC's infinity)

@@ -362,3 +362,47 @@ def test_the_verdict_survives_json_and_a_report_with_nan_fails_the_strict_writer
     with pytest.raises(ValueError):
         write_json(tmp_path / "r.json", {"fit_max": float("nan")})
     assert list(tmp_path.iterdir()) == []  # nothing half-written
+
+
+def _bowtie_face():
+    """A plane face bounded by a wire that crosses itself: OpenCascade's mesher gives it no triangles."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
+    from OCP.gp import gp_Pln, gp_Pnt
+
+    poly = BRepBuilderAPI_MakePolygon()
+    for p in ((0, 0, 0), (10, 10, 0), (10, 0, 0), (0, 10, 0)):
+        poly.Add(gp_Pnt(*p))
+    poly.Close()
+    return BRepBuilderAPI_MakeFace(gp_Pln(), poly.Wire(), True).Face()
+
+
+def test_a_face_freecad_cannot_mesh_is_named_and_fails_the_verdict():
+    """Issue 25: a face BRepMesh leaves without triangles at FreeCAD's display settings is a hole in FreeCAD."""
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Compound
+    from build123d import Box
+
+    from recon.brep._tessellate import DISPLAY_ANGLE, DISPLAY_DEVIATION, display_deflection, unmeshed_faces
+    from recon.verdict import unmeshed_names
+
+    # FreeCAD's Part defaults: Deviation 0.5 % of the mean side of the box, AngularDeflection 28.5°
+    assert DISPLAY_DEVIATION == 0.005 and DISPLAY_ANGLE == pytest.approx(np.deg2rad(28.5))
+    assert display_deflection(Box(10, 20, 30)) == pytest.approx(0.005 * 20.0, rel=1e-6)
+    assert unmeshed_faces(Box(10, 20, 30)) == []
+    both = TopoDS_Compound()
+    builder = BRep_Builder()
+    builder.MakeCompound(both)
+    builder.Add(both, Box(1, 1, 1).wrapped)
+    builder.Add(both, _bowtie_face())
+    assert unmeshed_faces(both) == [6]
+    assert unmeshed_names(both, [f"patch_{i}" for i in range(7)]) == ["patch_6"]
+
+    report, mesh, labels = _box_case(0.1)
+    assert judge(report, mesh, labels).rule("meshable").ok is None  # a report without the figure: not checked
+    report["unmeshed_faces"] = []
+    assert judge(report, mesh, labels).rule("meshable").ok is True
+    report["unmeshed_faces"] = ["patch_0"]
+    verdict = judge(report, mesh, labels)
+    assert [r.rule for r in verdict.failed] == ["meshable"] and not verdict.ok
+    assert verdict.rule("meshable").faces == ("patch_0",) and "FreeCAD" in verdict.rule("meshable").detail
+    assert verdict.within_tolerance is True  # the deviation holds; the result is still not good

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import logging
 import os
-import time
 from collections.abc import Callable
 from typing import Mapping
 
@@ -26,8 +25,8 @@ from OCP.TopoDS import TopoDS
 from ..network import OUTSIDE, CurveNetwork, NetworkGeometry, network_geometry
 from ..errors import BrepError, InputError
 from ._edges import fix_edges, shared_topology
-from ._faces import near_enough, orientation_vote
-from ._filling import FILLING_BUDGET
+from ._faces import Reach, near_enough, orientation_vote
+from ._filling import FILLING_ATTEMPTS, FillingBudget
 from ._match import match_faces
 from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity, shape_validity
 from ._shell import assemble, mend_faces, whole_fixed
@@ -42,7 +41,7 @@ log = logging.getLogger(__name__)
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 part_kinds: Mapping[int, str] | None = None,
                 part_areas: Mapping[int, float] | None = None, jobs: int | None = None,
-                progress: Callable[[int, int, str], None] | None = None) -> BrepResult:
+                progress: Callable[[int, int, str], None] | None = None, mesh_points=None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
@@ -64,6 +63,9 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         result does not depend on it.
     progress : callable(done, total, what), optional
         Told each part's face built ("faces built").
+    mesh_points : (n, 3) float, optional
+        The mesh's vertices (or its bounding box's corners): a face reaching farther than :func:`._faces.reach_margin`
+        outside their box is refused. Default: the network's polylines and part samples.
 
     Returns
     -------
@@ -82,12 +84,16 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     geo = _placed_network(network, surfaces, models, tolerance, jobs)
     edges = shared_topology(network, geo, warnings)
     context = ShapeBuild_ReShape()
-    fill_deadline = time.monotonic() + FILLING_BUDGET
+    fill_budget = FillingBudget(FILLING_ATTEMPTS)  # (counted, not timed: the same on every machine, issue 25)
     kinds, areas = dict(part_kinds or {}), dict(part_areas or {})
+    if mesh_points is None:  # (a part's extremes between its samples are missed by far less than the margin)
+        mesh_points = np.concatenate([network.coords.reshape(-1, 3), network.samples.reshape(-1, 3)])
+    reach = Reach.of(mesh_points, tolerance)
     records = []
     for p in network.parts.tolist():
         job = _face_job(p, network, geo, surfaces, models, edges, context, tolerance=tolerance,
-                        kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_deadline=fill_deadline)
+                        kind=kinds.get(p, "patch"), expected_area=areas.get(p), fill_budget=fill_budget)
+        job.reach = reach
         records.append(build_face(job, warnings))
         if progress is not None:
             progress(len(records), len(network.parts), "faces built")
@@ -160,7 +166,7 @@ def _placed_network(network: CurveNetwork, surfaces: Mapping, models: Mapping, t
 
 
 def _face_job(p: int, network: CurveNetwork, geo: NetworkGeometry, surfaces: Mapping, models: Mapping, edges: list,
-              context, *, tolerance: float, kind: str, expected_area: float | None, fill_deadline: float) -> FaceJob:
+              context, *, tolerance: float, kind: str, expected_area: float | None, fill_budget: FillingBudget) -> FaceJob:
     model = models[p]
     pts, nrm = network.part_samples(p)
     fit_ok = _fit_ok(surfaces, models, p)
@@ -171,7 +177,7 @@ def _face_job(p: int, network: CurveNetwork, geo: NetworkGeometry, surfaces: Map
         loops=[network.loop(j) for j in network.part_loops(p)], points=pts, normals=nrm,
         vote=orientation_vote(model, pts, nrm) if model is not None else 1,
         network=network, geo=geo, edges=edges, context=context, tolerance=tolerance, expected_area=expected_area,
-        fill_deadline=fill_deadline,
+        fill_budget=fill_budget,
     )
 
 

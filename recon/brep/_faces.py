@@ -8,9 +8,12 @@ and the fallbacks after them, are :mod:`recon.brep._strategies`.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 
 import numpy as np
+from OCP.Bnd import Bnd_Box
 from OCP.BRep import BRep_Builder, BRep_Tool
+from OCP.BRepBndLib import BRepBndLib
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge, BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakeVertex
 from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepLib import BRepLib
@@ -56,6 +59,68 @@ PRECISION_SHARE = 0.1
 #: A fit out of tolerance still bounds its own face ("poor") before any filling is tried when its RMS deviation is
 #: within this many tolerances: nearer, its face beats a filling; farther, the fit is of a wrong shape (bench/brep.md).
 OWN_SURFACE_RMS = 4.0
+
+
+#: The largest turn between neighbouring triangles of one curved face (as recon.verdict.SMOOTH_TURN): a chord c of the
+#: mesh across such a turn lies inside the true surface by at most c·tan(turn/4)/2, which bounds how far a face may
+#: bulge beyond the mesh's bounding box (:func:`reach_margin`).
+REACH_TURN = np.deg2rad(45.0)
+
+
+def reach_margin(tolerance: float, diagonal: float) -> float:
+    """How far a face may reach outside the mesh's bounding box: 2T (the fit's max) plus the chord sag of the
+    longest chord the mesh can hold (its diagonal) across a turn of :data:`REACH_TURN` (≈ 0.1 × diagonal).
+    A face beyond it is not the mesh's surface: a plane or B-spline left untrimmed, a filling gone wild."""
+    return 2.0 * tolerance + 0.5 * float(np.tan(REACH_TURN / 4.0)) * diagonal
+
+
+@dataclass(frozen=True)
+class Reach:
+    """The box a part's face must stay within: the mesh's bounding box ``lo``..``hi`` grown by ``margin``."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    margin: float
+
+    @classmethod
+    def of(cls, points, tolerance: float) -> Reach:
+        """The reach for a mesh whose points (or a sample of them holding its extremes) are ``points (k, 3)``."""
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        return cls(lo, hi, reach_margin(tolerance, float(np.linalg.norm(hi - lo))))
+
+    def outside(self, face) -> float:
+        """How far ``face`` reaches outside the mesh's box (≤ 0 within it), from a box that holds it.
+
+        OpenCascade's quick box of a face holds a B-spline's poles or a surface's whole patch: only when that one
+        passes the margin is the optimal box (an optimisation on the surface, slower) computed to confirm it.
+        """
+        far = self._beyond(face, optimal=False)
+        return far if far <= self.margin else self._beyond(face, optimal=True)
+
+    def refusal(self, face) -> str:
+        """Why ``face`` is refused for reaching too far outside the mesh, or "" when it stays within the margin."""
+        far = self.outside(face)
+        if far <= self.margin:
+            return ""
+        return (f"its face reaches {far:.4g} outside the mesh's bounding box (more than the margin {self.margin:.4g}: "
+                "a surface left untrimmed or a filling gone wild); refused")
+
+    def _beyond(self, face, *, optimal: bool) -> float:
+        box = Bnd_Box()
+        try:
+            if optimal:
+                BRepBndLib.AddOptimal_s(face, box, False, False)
+            else:
+                BRepBndLib.Add_s(face, box, False)
+        except Exception:  # noqa: BLE001  (OCC cannot bound the face: it reaches nowhere measurable)
+            return float("inf")
+        if box.IsVoid():
+            return float("inf")
+        if box.IsOpen():  # an infinite face
+            return float("inf")
+        x0, y0, z0, x1, y1, z1 = box.Get()
+        return float(max(np.max(self.lo - np.array([x0, y0, z0])), np.max(np.array([x1, y1, z1]) - self.hi)))
 
 
 def near_enough(fit, tolerance: float) -> bool:

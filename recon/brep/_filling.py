@@ -3,7 +3,7 @@ in a child process (it can crash or spin), then trimmed by the shared edges wher
 
 from __future__ import annotations
 
-import time
+from dataclasses import dataclass
 
 import numpy as np
 from OCP.BRep import BRep_Tool
@@ -13,6 +13,7 @@ from OCP.GeomAbs import GeomAbs_Shape
 from OCP.TopAbs import TopAbs_FACE
 from OCP.TopoDS import TopoDS
 
+from .._parallel import time_limits_fired
 from ..errors import BrepError
 from ._edges import checked_edges, pnt
 from ._faces import face_in_child, face_on_surface, orientation_vote
@@ -21,14 +22,29 @@ from ..fit import SurfaceKind
 from ._surfaces import SurfaceModel
 
 
-#: Seconds one ``BRepOffsetAPI_MakeFilling`` may take: ten times the slowest that succeeded; the ones that spin do
-#: so for minutes (bench/brep.md).
-FILLING_TIMEOUT = 5.0
+#: Seconds one ``BRepOffsetAPI_MakeFilling`` may take: a safety net against one that spins, not a budget (issue 25):
+#: 150× the slowest that succeeded unloaded (0.41 s), 12× the slowest seen on a loaded 2-core machine (4.8 s). Where
+#: it fires the part fails (:func:`recon._parallel.time_limits_fired`): never a result that depends on the speed.
+FILLING_TIMEOUT = 60.0
 
 
-#: Seconds all filling fallbacks of one build may take together (six times one filling's): a mesh whose every part
-#: needs one still ends in a result, with failed faces, in bounded time (bench/brep.md).
-FILLING_BUDGET = 30.0
+#: MakeFilling calls one build may make, a count so that every machine stops at the same one (it replaces a 30 s
+#: budget): both point sets (FILLING_POINTS) for 36 parts, the most a real mesh needed filled, as 30 s allowed at 0.41 s.
+FILLING_ATTEMPTS = 72
+
+
+@dataclass
+class FillingBudget:
+    """The MakeFilling calls a build has left (:data:`FILLING_ATTEMPTS`), taken by its parts in their order."""
+
+    left: int = FILLING_ATTEMPTS
+
+    def take(self) -> bool:
+        """One call, if one is left."""
+        if self.left <= 0:
+            return False
+        self.left -= 1
+        return True
 
 
 #: A face whose area is off its part's mesh area by more than this factor either way is named in the warnings: a
@@ -81,17 +97,17 @@ def isolated_filled_face(loops, edges, points, context, *, timeout: float = FILL
 
 
 def fallback_face(loops, edges, points, normals, context, *, precision: float, timeout: float = FILLING_TIMEOUT,
-                   expected_area: float | None = None):
+                   expected_area: float | None = None, budget: FillingBudget | None = None):
     """A filling surface through the part's boundary and points, trimmed by the shared wires if possible.
 
     Through every ``len // 16``-th point first; through every point when that gives no face, or one whose area
     is off ``expected_area`` (the part's mesh area) by more than :data:`AREA_RATIO_WARNING` either way, and then
-    the face of the two whose area is nearer (see :data:`FILLING_POINTS`).
+    the face of the two whose area is nearer (see :data:`FILLING_POINTS`). Each MakeFilling call takes one of
+    ``budget`` (none left: no call) and may take ``timeout`` seconds; one that runs out of time ends the attempts.
     Returns ``(face or None, area, status, message)``; ``status`` is ``FILLED`` for a face on the filling
     surface bounded by the network's own edges, ``FILLED_SEWN`` for MakeFilling's own face (new edges,
     joined to its neighbours by sewing), ``FAILED`` otherwise (a :class:`FaceStatus`).
     """
-    deadline = time.monotonic() + timeout
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     nrm = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
 
@@ -108,20 +124,22 @@ def fallback_face(loops, edges, points, normals, context, *, precision: float, t
         if every in tried:  # (fewer samples than the step: the same points again)
             continue
         tried.add(every)
+        if budget is not None and not budget.take():
+            got = (None, 0.0, FaceStatus.FAILED, f"no filling tried: this build's {FILLING_ATTEMPTS} MakeFilling calls are spent")
+            best = got if best is None else best
+            break
+        fired = time_limits_fired()
         got = fallback_face_through(loops, edges, pts[::every], nrm[::every], context, precision=precision,
-                                     timeout=min(timeout, deadline - time.monotonic()))
+                                     timeout=timeout)
         if best is None or off(got) < off(best):
             best = got
-        if off(best) <= AREA_RATIO_WARNING:
+        if off(best) <= AREA_RATIO_WARNING or time_limits_fired() > fired:
             break
     return best
 
 
 def fallback_face_through(loops, edges, points, normals, context, *, precision: float, timeout: float):
     """:func:`fallback_face` through the given points."""
-    if not timeout > 0:
-        why = f"no filling tried: the {FILLING_BUDGET:g} s budget for filling faces is spent"
-        return None, 0.0, FaceStatus.FAILED, why
     try:
         filled, surface = isolated_filled_face(loops, edges, points, context, timeout=timeout)
     except BrepError as err:

@@ -28,7 +28,7 @@ from OCP.XCAFDoc import XCAFDoc_DocumentTool, XCAFDoc_ShapeTool
 
 from ..errors import InputError
 
-__all__ = ["read_step", "faces_of", "read_back_validity"]
+__all__ = ["read_step", "faces_of", "read_back_shape", "read_back_validity"]
 
 log = logging.getLogger(__name__)
 
@@ -144,13 +144,10 @@ def read_step(path: str | os.PathLike) -> tuple[TopoDS_Shape, tuple[str, ...]]:
     return shape, tuple(face_names)
 
 
-def read_back_validity(path: str | os.PathLike):
-    """The :class:`recon.brep.Validity` of a written ``.step``/``.stp``, ``.igs``/``.iges`` or ``.brep`` file, read
-    back from disk: what a CAD program that opens it gets, not the shape in memory (a part scaled far out of
-    OpenCascade's precision was valid in memory and invalid in its STEP file)."""
+def read_back_shape(path: str | os.PathLike) -> tuple[TopoDS_Shape, tuple[str, ...]]:
+    """The shape of a written ``.step``/``.stp``, ``.igs``/``.iges`` or ``.brep`` file and its face names
+    (``face_<i>`` where the format holds none: BREP and IGES)."""
     from OCP.BRepTools import BRepTools
-
-    from ._build import shape_validity
 
     path = Path(path)
     if path.suffix.lower() in (".brep", ".brp"):
@@ -162,5 +159,14 @@ def read_back_validity(path: str | os.PathLike):
 
         shape = read_iges(path)
     else:
-        shape, _ = read_step(path)
-    return shape_validity(shape)
+        return read_step(path)
+    return shape, tuple(f"face_{i}" for i in range(len(faces_of(shape))))
+
+
+def read_back_validity(path: str | os.PathLike):
+    """The :class:`recon.brep.Validity` of a written ``.step``/``.stp``, ``.igs``/``.iges`` or ``.brep`` file, read
+    back from disk: what a CAD program that opens it gets, not the shape in memory (a part scaled far out of
+    OpenCascade's precision was valid in memory and invalid in its STEP file)."""
+    from ._build import shape_validity
+
+    return shape_validity(read_back_shape(path)[0])

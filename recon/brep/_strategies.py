@@ -15,16 +15,16 @@ returns an :class:`Attempt`: a face with its status and warnings, or no face and
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
+from .._parallel import time_limits_fired
 from ..network import CurveNetwork, NetworkGeometry
 from ..errors import BrepError
-from ._faces import face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
-from ._filling import AREA_RATIO_WARNING, FILLING_TIMEOUT, fallback_face
+from ._faces import Reach, face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
+from ._filling import AREA_RATIO_WARNING, FILLING_TIMEOUT, FillingBudget, fallback_face
 from ._result import FaceRecord, FaceStatus
 from ._seam import face_with_seam_split
 from ._surfaces import SurfaceModel
@@ -56,7 +56,8 @@ class FaceJob:
     context: object
     tolerance: float
     expected_area: float | None
-    fill_deadline: float
+    fill_budget: FillingBudget  # (shared by the build's parts)
+    reach: Reach | None = None  # a face reaching beyond it is refused and the next strategy tried
 
 
 @dataclass(frozen=True)
@@ -114,10 +115,10 @@ def on_copies(job: FaceJob, message: str) -> Attempt:
 
 
 def filling(job: FaceJob, message: str) -> Attempt:
-    """A MakeFilling B-spline through its boundary and points (recon.brep._filling), within the time left."""
-    left = min(FILLING_TIMEOUT, job.fill_deadline - time.monotonic())
+    """A MakeFilling B-spline through its boundary and points (recon.brep._filling), within the build's calls."""
     face, area, status, why = fallback_face(job.loops, job.edges, job.points, job.normals, job.context,
-                                            precision=job.tolerance, timeout=left, expected_area=job.expected_area)
+                                            precision=job.tolerance, timeout=FILLING_TIMEOUT,
+                                            expected_area=job.expected_area, budget=job.fill_budget)
     message = _join(message, why)
     if face is None:
         return _none(message)
@@ -197,8 +198,20 @@ def build_face(job: FaceJob, warnings: list) -> FaceRecord:
     message = _first_message(job)
     got = _none(message)
     for strategy in order:
+        fired = time_limits_fired()
         got = strategy(job, message)
         message = got.message
+        if time_limits_fired() > fired:  # a safety net fired: what would come next depends on the machine's speed
+            got = _none(_join(message, "a time limit (a safety net against a hang) fired: the part fails rather "
+                                       "than take a face another machine might not"))
+            message = got.message
+            job.fill_budget.left = 0  # (the build has failed: no more fillings, each of which could hang as long)
+            warnings.append(f"{job.name}: no face ({message})")
+            break
+        refused = job.reach.refusal(got.face) if got.face is not None and job.reach is not None else ""
+        if refused:
+            got = _none(_join(message, f"{strategy.__name__}: {refused}"))
+            message = got.message
         if got.face is not None:
             warnings.extend(got.warnings)
             break

@@ -15,9 +15,15 @@ from scipy.spatial import cKDTree
 
 from ..errors import BrepError, InputError
 
-__all__ = ["labelled_tessellation", "result_tessellation"]
+__all__ = ["labelled_tessellation", "result_tessellation", "display_deflection", "unmeshed_faces"]
 
 log = logging.getLogger(__name__)
+
+#: FreeCAD's display tessellation (Part view provider, its defaults): linear deflection ``Deviation`` = 0.5 % of the
+#: mean side of the shape's bounding box ((dx + dy + dz) / 300 × 0.5), angular deflection 28.5°, absolute, in
+#: parallel. A face that gets no triangles there shows as a hole in FreeCAD (issue 25).
+DISPLAY_DEVIATION = 0.005
+DISPLAY_ANGLE = float(np.deg2rad(28.5))
 
 
 def _wrapped(shape):
@@ -127,3 +133,43 @@ def result_tessellation(result, *, deflection: float):
         kinds.append(next((r.kind for r in result.faces if r.face is not None and r.face.IsSame(face)), "patch"))
         exp.Next()
     return v, f, lab, kinds
+
+
+def display_deflection(shape) -> float:
+    """FreeCAD's display deflection for ``shape``: :data:`DISPLAY_DEVIATION` × the mean side of its bounding box
+    (OpenCascade's box of the shape, no gap), and OpenCascade's confusion for a shape of no size."""
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRepBndLib import BRepBndLib
+    from OCP.Precision import Precision
+
+    box = Bnd_Box()
+    BRepBndLib.Add_s(_wrapped(shape), box)
+    box.SetGap(0.0)
+    if box.IsVoid():
+        return float(Precision.Confusion_s())
+    x0, y0, z0, x1, y1, z1 = box.Get()
+    return max(DISPLAY_DEVIATION * ((x1 - x0) + (y1 - y0) + (z1 - z0)) / 3.0, float(Precision.Confusion_s()))
+
+
+def unmeshed_faces(shape) -> list[int]:
+    """The faces (indices in :func:`recon.brep._step_read.faces_of` order) that OpenCascade's mesher leaves without
+    a triangle at FreeCAD's display settings (:data:`DISPLAY_DEVIATION`, :data:`DISPLAY_ANGLE`).
+
+    Meshed on a copy without triangulation, as FreeCAD meshes a shape it has just read: BRepMesh refines a
+    triangulation it finds instead of starting afresh (and the caller's shape keeps none of it).
+    """
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+
+    from ._step_read import faces_of
+
+    copy = BRepBuilderAPI_Copy(_wrapped(shape), True, False).Shape()
+    try:
+        BRepMesh_IncrementalMesh(copy, display_deflection(copy), False, DISPLAY_ANGLE, True)
+    except Exception as err:  # noqa: BLE001  (OCC raises Standard_Failure: then no face got its triangles)
+        log.warning("BRepMesh failed on the whole shape (%s: %s)", type(err).__name__, err)
+    out = []
+    for i, face in enumerate(faces_of(copy)):
+        tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
+        if tri is None or tri.NbTriangles() == 0:
+            out.append(i)
+    return out
