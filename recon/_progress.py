@@ -1,5 +1,5 @@
 """Progress of a conversion, as the command line shows it: fed by the ``progress(stage, fraction)`` callback of
-:func:`recon.convert`, whose long stages also report their items (parts fitted, faces built, points measured) as
+:func:`recon.convert`, whose long stages also report their items (parts fitted, faces built, samples measured) as
 :class:`Count` fractions.
 
 On a terminal: one line per stage on stderr, redrawn in place while the stage runs ("fit  parts fitted 37/71,
@@ -37,7 +37,7 @@ class Count(float):
     done, total : int
         Items of the step done, and in all (0 < done < total).
     what : str
-        The items, as a display names them: "parts fitted", "faces built", "points measured".
+        The items, as a display names them: "parts fitted", "faces built", "samples measured".
     """
 
     done: int

@@ -259,7 +259,8 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
     max_candidates : int, optional
         Most triangles measured per point; default :data:`MAX_CANDIDATES`.
     progress : callable(done, total, what), optional
-        Told the points settled ("points measured"): the near ones at once, then the far ones as they are measured.
+        Told the samples measured against their nearest triangles ("samples measured"), then, for the samples far
+        from the mesh, the triangles within their reach measured ("far samples' triangles measured").
 
     Returns
     -------
@@ -299,6 +300,10 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
             np.minimum.at(d0, rows, d)
         return d0
 
+    def tell(done, total, what):
+        if progress is not None:
+            progress(done, total, what)
+
     def measure(idx, k):
         step = max(1, _PAIR_CHUNK // k)
         for s in range(0, len(idx), step):
@@ -307,18 +312,12 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
             dk, j = dk.reshape(len(i), k), j.reshape(len(i), k)
             best[i] = np.minimum(best[i], nearest_of(i, j, dk))
             exact[i] = (k >= m) | (best[i] <= dk[:, -1] - reach)
+            tell(s + len(i), len(idx), "samples measured")
 
     # 1. the 16 nearest pieces settle every point near the mesh;
     measure(np.arange(len(p)), min(16, m))
     # 2. the others: every piece within best + reach, nearest-first by that count, within the budgets;
     todo = np.flatnonzero(~exact)
-    settled = len(p) - len(todo)
-
-    def tell(k):
-        if progress is not None:
-            progress(settled + k, len(p), "points measured")
-
-    tell(0)
     if len(todo):
         # Counted in a tree of larger leaves: a ball of best + reach holds thousands of pieces, whole leaves at a
         # time (the same counts, a third faster).
@@ -329,7 +328,9 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
         take, pending = todo[ok], todo[~ok]
         # Measured as if every piece within best + reach were (the budgets keep that cost), but the pieces are
         # looked up by size class, small first: a small piece is only a candidate within best + its radius.
-        _exact_nearest(p, take, count[ok], best, tri, centre, radius, slack, tell=tell)
+        # (told in sample-triangle pairs: the batches hold equal numbers of them, and take equal times)
+        _exact_nearest(p, take, count[ok], best, tri, centre, radius, slack,
+                       tell=lambda done, total: tell(done, total, "far samples' triangles measured"))
         exact[take] = True
         # 3. past the budget: the nearest few pieces give an upper bound (exact only if certified).
         if len(pending):
@@ -344,7 +345,7 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
 
     The pieces go in size classes (radius halving from the largest), each with its own KD-tree; the small ones
     first, so that ``best`` has tightened when the few large ones, looked up over a larger ball, come.
-    ``tell(k)``, optional, is told the first ``k`` points of ``idx`` done.
+    ``tell(done, total)``, optional, is told the pairs (point, piece within its ball) done, of ``sum(count)``.
     """
     from scipy.spatial import cKDTree
 
@@ -357,6 +358,7 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
         members = np.flatnonzero(level == c)
         if len(members):
             groups.append((members, float(radius[members].max()), cKDTree(centre[members])))
+    pairs = np.cumsum(count)
     s = 0
     while s < len(idx):
         e = s + max(1, int(np.searchsorted(np.cumsum(count[s:]), _PAIR_CHUNK)))
@@ -375,7 +377,7 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
             np.minimum.at(sub, rows, _point_triangle_distance(q[rows], tri[cols]))
             best[i] = sub
         if tell is not None:
-            tell(s)
+            tell(int(pairs[s - 1]), int(pairs[-1]))
 
 
 def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,
@@ -402,7 +404,7 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
         A name per face of a shape passed in (not a STEP file), in the shape's face order (``TopExp_Explorer``);
         default ``face_0``, ``face_1``, ….
     progress : callable(done, total, what), optional
-        Told the points measured ("points measured": the mesh's vertices, then the samples of the B-rep).
+        Told the samples of the B-rep measured to the mesh (:func:`mesh_distance`), the longer direction.
 
     Returns
     -------
@@ -448,9 +450,7 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
     area_pts, area_face = brep.surface_samples(DEFAULT_SAMPLES if samples is None else int(samples), rng=rng,
                                                nodes=False)
     pts, pts_face = np.vstack([nodes, area_pts]), np.concatenate([nodes_face, area_face])
-    total = len(v) + len(pts)
-    tick = None if progress is None else (lambda done, _, what: progress(len(v) + done, total, what))
-    back, exact = mesh_distance(v, f, pts, progress=tick)
+    back, exact = mesh_distance(v, f, pts, progress=progress)
     if not len(pts):
         notes.append("shape → mesh: no face of the shape could be triangulated, so nothing was measured")
     if not exact.all():

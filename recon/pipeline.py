@@ -111,7 +111,7 @@ def convert(
         Called with a stage name from :data:`STAGES` and 0.0 when it starts, 1.0 when it ends. The fit, brep and
         deviation stages also call it as their items complete, with a :class:`recon._progress.Count`: a float
         ``done / total`` (0 < it < 1) of the current step's items that carries ``done``, ``total`` and ``what``
-        ("parts fitted", "faces built", "points measured").
+        ("parts fitted", "faces built", "samples measured").
     jobs : int, optional
         Processes the decomposition and the curve network's placement may use (default: the cores available; see
         :func:`recon.decompose.decompose`, :func:`recon.brep.build_solid`).

@@ -11,6 +11,7 @@ import subprocess
 import pytest
 
 from cli_harness import FIXTURES, cli_command, cli_env
+from test_export import occ_prints_warnings  # noqa: F401  (a fixture)
 
 SMALL = "prism_coarse.stl"  # 264 triangles: the quickest fixture that converts
 SUMMARY_HEADS = ("result: ", "faces: ", "solid: ", "deviation mesh→shape: ", "deviation shape→mesh: ", "time: ")
@@ -97,14 +98,15 @@ def test_printed_deviations_have_units_and_no_zero_percent(work):
     assert re.search(r"\(tolerance [0-9.e+-]+ mm\)", proc.stdout.splitlines()[0]), proc.stdout
 
 
-PROGRESS = re.compile(r"^recon: (fit|brep|deviation): (parts fitted|refinement passes|faces built|points measured) "
+PROGRESS = re.compile(r"^recon: (fit|brep|deviation): (parts fitted|refinement passes|faces built|samples measured|far samples' triangles measured) "
                       r"([0-9,]+)/([0-9,]+) \(\d+ %\)(, (about \d+ (s|min)|under 1 s) left)?$")
 
 
 def test_progress_lines_off_a_terminal_count_the_items(work):
     """stderr a pipe, the interval 0 (a stand-in for a run longer than 5 s: every count is printed): plain lines with
-    the parts fitted, the faces built and the points measured, counting up to below their totals; the faces' total
-    is the number of parts. stdout holds the summary alone."""
+    the parts fitted, the faces built and the B-rep's samples measured, counting up to below their totals; the
+    faces' total is the number of parts, the samples' at least the 20,000 area-uniform ones. stdout holds the summary
+    alone."""
     shutil.copyfile(FIXTURES / "box_fillet_coarse.stl", work / "fillet.stl")  # through the fit stage (no exact path)
     proc = _run(work, "convert", "fillet.stl", "out.step", "--report", "r.json", interval=0)
     assert proc.returncode in (0, 1), proc.stderr
@@ -121,7 +123,7 @@ def test_progress_lines_off_a_terminal_count_the_items(work):
     for seq in counts.values():
         assert len({t for _, t in seq}) == 1 and [d for d, _ in seq] == sorted({d for d, _ in seq}), seq
     assert counts[("brep", "faces built")] == [(k, len(report["faces"])) for k in range(1, len(report["faces"]))]
-    assert counts[("deviation", "points measured")][0][1] > report["mesh"]["triangles"] / 2  # vertices + samples
+    assert counts[("deviation", "samples measured")][0][1] >= 20_000  # DEFAULT_SAMPLES, and the tessellation's nodes
     assert not any(PROGRESS.match(ln) for ln in proc.stdout.splitlines())
     assert proc.stdout.splitlines()[-1] == "wrote out.step"
 
@@ -163,7 +165,7 @@ def test_plain_progress_waits_for_the_interval_and_a_terminal_redraws_one_line()
     assert Count(1, 4, "x") == 0.25 and isinstance(Count(1, 4, "x"), float)  # a plain callback reads a fraction
 
 
-def test_occ_warnings_stay_out_of_the_summary_and_stderr(work, capfd, monkeypatch):
+def test_occ_warnings_stay_out_of_the_summary_and_stderr(work, capfd, monkeypatch, occ_prints_warnings):
     """An OpenCascade warning during the B-rep stage (a filling's broken wire, see test_export) is neither in the
     summary on stdout nor on stderr: it goes to the debug log."""
     import recon.brep

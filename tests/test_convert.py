@@ -221,7 +221,7 @@ def test_real_mesh_converts_to_valid_solids(shared_meshes, name):
     [
         (lambda d: ("convert", d / "missing.stl", d / "o.step"), "no such file"),
         (lambda d: ("convert", d / "empty.stl", d / "o.step"), "empty"),
-        (lambda d: ("convert", d / "cube.stl", d / "o.iges"), "unknown extension"),
+        (lambda d: ("convert", d / "cube.stl", d / "o.obj"), "unknown extension"),
         (lambda d: ("convert", d / "cube.stl", d / "o.step", "--tolerance", "-1"), "--tolerance"),
         (lambda d: ("convert", d / "cube.stl", d / "o.step", "--jobs", "0"), "--jobs"),
         (lambda d: ("convert", d / "cube.stl", d / "nofolder" / "o.step"), "does not exist"),

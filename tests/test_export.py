@@ -29,7 +29,24 @@ def _filling_of_a_broken_wire() -> bool:
     return filling.IsDone()
 
 
-def test_occ_warnings_go_to_the_debug_log_not_to_the_terminal(capfd, caplog, tmp_path, monkeypatch):
+@pytest.fixture()
+def occ_prints_warnings():
+    """The default messenger's printers at OCCT's default level (Info) for the test: build123d's export_step leaves
+    them at Fail for the rest of the process, which hides warnings whether recon routes them or not."""
+    from OCP.Message import Message, Message_Gravity
+
+    printers = Message.DefaultMessenger_s().Printers()
+    printers = [printers.Value(i) for i in range(1, printers.Length() + 1)]
+    old = [p.GetTraceLevel() for p in printers]
+    for p in printers:
+        p.SetTraceLevel(Message_Gravity.Message_Info)
+    yield
+    for p, level in zip(printers, old):
+        p.SetTraceLevel(level)
+
+
+def test_occ_warnings_go_to_the_debug_log_not_to_the_terminal(capfd, caplog, tmp_path, monkeypatch,
+                                                               occ_prints_warnings):
     """Outside occ_messages the warning reaches the process's stdout in ANSI colours (the trigger is real); inside,
     neither stdout nor stderr gets it, the log has it at debug level, plain, and no file is left in TMPDIR."""
     _filling_of_a_broken_wire()
