@@ -31,6 +31,7 @@ import scipy.sparse as sp
 from .errors import MeshError
 from ._array import row_norms
 from .mesh._topology import stable_argsort
+from .fit import ring_noise
 
 __all__ = ["FeatureField", "feature_field", "mesh_arrays", "heat_smooth"]
 
@@ -279,15 +280,23 @@ def estimate_noise(vertices, faces, L, mass, mean_edge: float, *, vertex_normals
                    hinge_pairs=None) -> float:
     """Robust estimate of the vertex noise standard deviation normal to the surface.
 
-    The smaller of two estimates, each blind to something the other sees:
+    0 on an exact tessellation (see *hinge*). Otherwise the larger of two estimates, each biased low where the other
+    is not (bench/noise.md):
 
-    - *hinge*: across every interior edge, the distance of the far vertex of one triangle from the
-      other triangle's plane. On a noisy flat area that is ``z_d − z_a − z_b + z_c`` (standard deviation
-      2σ); across a feature it is large, and on a faceted CAD tessellation (exact vertices, coplanar
-      neighbours) it is 0 — the tessellation's chordal error is not noise. Lower quartile, so features
-      and curvature (a quarter of the edges or more) do not count.
-    - *offset*: each vertex's offset from a lightly smoothed surface (one edge length) along the smoothed
-      normal, lower quartile. It needs no manifold edge pairing, but sees the curvature and the faceting.
+    - the smaller of *hinge* and *offset*, each blind to something the other sees:
+
+      - *hinge*: across every interior edge, the distance of the far vertex of one triangle from the
+        other triangle's plane. On a noisy flat area that is ``z_d − z_a − z_b + z_c`` (standard deviation
+        2σ); across a feature it is large, and on a faceted CAD tessellation (exact vertices, coplanar
+        neighbours) it is 0 — the tessellation's chordal error is not noise. Lower quartile, so features
+        and curvature (a quarter of the edges or more) do not count.
+      - *offset*: each vertex's offset from a lightly smoothed surface (one edge length) along the smoothed
+        normal, lower quartile. It needs no manifold edge pairing, but sees the curvature and the faceting.
+
+      On dense scans with σ ≳ h/4 it reads 0.35–0.8 σ (the hinge's face normals tilt with the noise).
+    - *ring* (:func:`recon.fit.ring_noise`): the area-weighted lower quartile of the residual of a quadric fitted to
+      each vertex's 2-ring, at most :data:`HINGE_CAP` times the hinge estimate. 0.9–1.0 σ on the scans; lower than
+      the first on decimated real scans, whose large flat triangles carry QEM-averaged vertices.
 
     ``vertex_normals`` (:func:`_vertex_normals`), ``geom`` and ``hinge_pairs`` (see :func:`_hinge_noise`), when the
     caller has them.
@@ -306,7 +315,11 @@ def estimate_noise(vertices, faces, L, mass, mean_edge: float, *, vertex_normals
     # noise of the neighbours the smoothing averaged: on noisy planes with a known sigma the estimate
     # came out 0.75-0.85x sigma at this window, hence the 1.2.
     offset = float(1.2 * np.percentile(np.abs(d - np.median(d)), 25) / 0.3186)
-    return min(offset, hinge) if hinge is not None else offset
+    ring = ring_noise(vertices, faces, vertex_normals=vn)
+    if hinge is None:
+        return max(offset, ring)
+    # an underestimate is what shatters a decomposition (every fit "not within tolerance"): the larger one is kept
+    return max(min(offset, hinge), min(ring, HINGE_CAP * hinge))
 
 
 def hinge_pairs(faces, n_vertices: int, order=None) -> tuple[np.ndarray, np.ndarray]:
@@ -330,6 +343,10 @@ def hinge_pairs(faces, n_vertices: int, order=None) -> tuple[np.ndarray, np.ndar
     return order[pair], order[pair + 1]
 
 
+#: The noise is at most this many times the hinge estimate (:func:`_hinge_noise`): that reads at least 0.23 σ on every
+#: scan regime (σ up to 0.5 % of the diagonal, about h/2; bench/noise.md), so a ring estimate beyond 5× it is shape
+#: the 2-ring quadrics missed where most rings straddle a crease (a coarse CAD export without flat hinges), not noise.
+HINGE_CAP = 5.0
 #: A hinge (see :func:`_hinge_noise`) at most this share of the diagonal high is flat: its four vertices lie in one
 #: plane up to the file's round-off (a text format with 6 significant digits rounds at 1e-6 of the size).
 EXACT_HINGE = 1e-6

@@ -1,7 +1,7 @@
 """Surface and curve fitting (numpy/scipy only; ``recon.brep`` turns the parameters into OpenCascade objects)."""
 
 from ._curves import fit_bspline_curve, fit_circle, fit_curve, fit_edge_curve, fit_line, point_curve, polyline_curve
-from ._noise import default_tolerance, estimate_normals, noise_sigma
+from ._noise import default_tolerance, estimate_normals, noise_sigma, ring_noise
 from ._blend import fit_rolling_ball, ruled_surface
 from ._bspline import fit_bspline_surface
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
@@ -50,6 +50,7 @@ __all__ = [
     "fit_torus",
     "fit_rolling_ball",
     "noise_sigma",
+    "ring_noise",
     "point_curve",
     "polyline_curve",
     "quick_fit",
