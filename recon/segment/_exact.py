@@ -379,7 +379,9 @@ def reclaim(at: _Atoms, regions: list, eps: float, sag: float) -> list[tuple[lis
             # only from smaller regions, or small plane atoms (a plane of more triangles is proven a plane)
             if (o >= 0 and size[o] >= size[i]) or (o < 0 and len(at.tris[a]) > 2):
                 continue
-            if not all(at.smooth(a, b) for b in at.nbrs[a] if owner[b] == i):
+            # joined across one smooth edge at least: a sliver's own normal, from float32 corners, may turn by a
+            # crease's angle while its vertices and chords lie on the surface to round-off
+            if not any(at.smooth(a, b) for b in at.nbrs[a] if owner[b] == i):
                 continue
             if not _fits_exactly(fit, V, F, at.verts[a], at.tris[a], eps, sag):
                 continue
