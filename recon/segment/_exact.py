@@ -22,6 +22,7 @@ from ..errors import FitError
 from ..fit import SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ..mesh import Mesh
 from ._context import own_normals
+from ._exact_freeform import impossible_types
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
            "roundoff"]
@@ -223,10 +224,12 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
     nrm = own_normals(V, F[tris], ids_local, len(ids))
     out = []
     kinds = [k for k, _ in CURVED]
+    pick = np.linspace(0, len(ids) - 1, FIT_POINTS).astype(int) if len(ids) > FIT_POINTS else slice(None)
+    # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
+    hopeless = impossible_types(V[ids[pick]], eps)
     for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
-        if len(ids) <= params:
+        if len(ids) <= params or kind in hopeless:
             continue
-        pick = np.linspace(0, len(ids) - 1, FIT_POINTS).astype(int) if len(ids) > FIT_POINTS else slice(None)
         try:
             fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=eps)
         except (FitError, np.linalg.LinAlgError, ValueError):
@@ -343,6 +346,53 @@ def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceF
             regions.append((region, fit))
     log.info("exact: %d curved faces of %d atoms", len(regions), k)
     return regions
+
+
+def reclaim(at: _Atoms, regions: list, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
+    """The curved regions after each, largest first, took over the neighbouring atoms its surface holds to round-off
+    (and within the sag) from smaller curved regions and from the small plane atoms no region took, across no crease.
+
+    A seed's few atoms can pass a coincidental surface that also holds a strip of the face next to it (a slot's side
+    and the end strips of its two half-cylinders lie on one circle: a symmetric trapezoid is cyclic), or grow a piece
+    of a face before the face's own seed does (a cylinder along a torus's minor circle): the larger face's surface,
+    proven by more vertices, holds those strips and takes them back; a piece of the same surface goes whole. A region
+    left with one atom is dropped: one atom's triangles are coplanar, the plane is the simplest surface holding them.
+    """
+    V, F = at.mesh.vertices, at.mesh.faces
+    owner = np.full(len(at.tris), -1, dtype=np.int64)
+    members = [list(r) for r, _ in regions]
+    for i, r in enumerate(members):
+        owner[r] = i
+    size = [sum(len(at.tris[a]) for a in r) for r in members]
+    for i in sorted(range(len(regions)), key=lambda j: -size[j]):
+        if len(members[i]) < 2:
+            continue
+        fit = regions[i][1]
+        front = [n for a in members[i] for n in at.nbrs[a]]
+        seen: set = set()
+        while front:
+            a = front.pop()
+            o = int(owner[a])
+            if a in seen or o == i:
+                continue
+            seen.add(a)
+            # only from smaller regions, or small plane atoms (a plane of more triangles is proven a plane)
+            if (o >= 0 and size[o] >= size[i]) or (o < 0 and len(at.tris[a]) > 2):
+                continue
+            # joined across one smooth edge at least: a sliver's own normal, from float32 corners, may turn by a
+            # crease's angle while its vertices and chords lie on the surface to round-off
+            if not any(at.smooth(a, b) for b in at.nbrs[a] if owner[b] == i):
+                continue
+            if not _fits_exactly(fit, V, F, at.verts[a], at.tris[a], eps, sag):
+                continue
+            if o >= 0:
+                members[o].remove(a)
+                size[o] -= len(at.tris[a])
+            members[i].append(a)
+            size[i] += len(at.tris[a])
+            owner[a] = i
+            front.extend(at.nbrs[a])
+    return [(m, regions[i][1]) for i, m in enumerate(members) if len(m) >= 2]
 
 
 def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> int:
@@ -469,7 +519,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     labels = np.full(len(F), -1, dtype=np.int64)
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
-    curved = grow_curved(at, eps, sag)
+    curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
     for region, fit in _weak_dropped(at, curved, notes):
         p = len(fits)
         fits[p] = _best_type(at, region, fit, eps, sag, f"face {p}", notes)
