@@ -41,7 +41,8 @@ log = logging.getLogger(__name__)
 def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
                 part_kinds: Mapping[int, str] | None = None,
                 part_areas: Mapping[int, float] | None = None, jobs: int | None = None,
-                progress: Callable[[int, int, str], None] | None = None, mesh_points=None) -> BrepResult:
+                progress: Callable[[int, int, str], None] | None = None,
+                mesh_points: np.ndarray | None = None) -> BrepResult:
     """Build a closed, valid solid from a curve network and one surface per part.
 
     Parameters
