@@ -123,7 +123,6 @@ def test_noisy_or_dense_meshes_do_not_take_the_exact_path():
 
 @pytest.mark.parametrize("seed", [29, 2, 8])
 def test_corpus_export_seeds_give_their_true_faces(seed, tmp_path):
-    pytest.importorskip("build123d")
     from bench.corpus.truth import materialise
 
     truth = materialise(seed, "export", tmp_path)

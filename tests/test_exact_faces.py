@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections import Counter
 
+import build123d as bd
 import numpy as np
 import pytest
 
@@ -41,14 +42,12 @@ def _export(solid, chord: float, angle: float):
 def test_filleted_cylinder_is_one_cylinder_two_tori_two_planes(chord, angle):
     """The side's strips next to a fillet lie on a cylinder along the torus's minor circle too: the torus, proven by
     more vertices, takes them back (before: the exact path gave up on it)."""
-    bd = pytest.importorskip("build123d")
     solid = bd.fillet(bd.Cylinder(27, 20).edges(), 2)
     found = _faces(_export(solid, chord, angle))
     assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 1, "torus": 2, "plane": 2}
 
 
 def test_slot_prism_is_two_cylinders_and_four_planes():
-    bd = pytest.importorskip("build123d")
     solid = bd.extrude(bd.SlotOverall(60, 20), 5)
     found = _faces(_export(solid, 1e-3, 0.5))
     assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 2, "plane": 4}
@@ -58,7 +57,6 @@ def test_slot_prism_is_two_cylinders_and_four_planes():
 def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     """Parts whose faces the first seeds split or merged with a neighbour's strips: a slot's side with the end strips
     of its half-cylinders (36), cylinders along a torus (19), fillet chains (6), a cylinder drawn as a sphere (56)."""
-    pytest.importorskip("build123d")
     from bench.corpus.truth import materialise
 
     truth = materialise(seed, "export", tmp_path)

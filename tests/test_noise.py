@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
 from recon.errors import FitError
 from recon.fit import ring_noise
@@ -39,7 +40,6 @@ def _cylinder(radius: float, h: float = 1.0, rows: int = 100):
 
 
 def _sphere(subdivisions: int = 5, radius: float = 1.0):
-    trimesh = pytest.importorskip("trimesh")
     m = trimesh.creation.icosphere(subdivisions, radius=radius)
     v = np.asarray(m.vertices, float)
     return v, np.asarray(m.faces), v / np.linalg.norm(v, axis=1, keepdims=True)
@@ -50,19 +50,12 @@ def _mean_edge(v, f) -> float:
 
 
 @pytest.mark.parametrize("ratio", [0.01, 0.1, 0.5])
-def test_plane_with_known_sigma(ratio):
-    v, f, n = _grid()
+@pytest.mark.parametrize("shape, seed", [(_grid, 1), (_sphere, 2)])
+def test_plane_and_sphere_with_known_sigma(shape, seed, ratio):
+    """The sphere: R = 1 at h ≈ 0.04, so a quadric fitted to a plane-sized ring would see the sagitta ρ²/2R ≈ 3e-3 ≫ σ."""
+    v, f, n = shape()
     sigma = ratio * _mean_edge(v, f)
-    noisy = v + n * np.random.default_rng(1).normal(0.0, sigma, (len(v), 1))
-    assert ring_noise(noisy, f) == pytest.approx(sigma, rel=0.05)
-
-
-@pytest.mark.parametrize("ratio", [0.01, 0.1, 0.5])
-def test_sphere_with_known_sigma(ratio):
-    """R = 1 at h ≈ 0.04: a quadric fitted to a plane-sized ring would see the sagitta ρ²/2R ≈ 3e-3 ≫ σ."""
-    v, f, n = _sphere()
-    sigma = ratio * _mean_edge(v, f)
-    noisy = v + n * np.random.default_rng(2).normal(0.0, sigma, (len(v), 1))
+    noisy = v + n * np.random.default_rng(seed).normal(0.0, sigma, (len(v), 1))
     assert ring_noise(noisy, f) == pytest.approx(sigma, rel=0.05)
 
 
