@@ -44,7 +44,7 @@ def run(name: str, path: Path, out: Path, timeout: float) -> dict:
     except subprocess.TimeoutExpired:
         return {"case": name, "rc": None, "error": f"timeout {timeout:g} s"}
     row = {"case": name, "rc": proc.returncode, "seconds": round(time.perf_counter() - t, 1),
-           "line": next((ln for ln in proc.stderr.splitlines() if ln.startswith("result:")), proc.stderr[-300:])}
+           "line": next((ln for ln in proc.stdout.splitlines() if ln.startswith("result:")), proc.stderr[-300:])}
     rep = work / "report.json"
     if rep.exists():
         report = json.loads(rep.read_text())

@@ -57,9 +57,9 @@ def run_recon(mesh: Path, out: Path, report: Path, *, timeout: float, memory_mb:
         return {"exit": None, "status": "timeout", "seconds": round(time.perf_counter() - t0, 2),
                 "message": f"no result in {timeout:g} s"}
     seconds = round(time.perf_counter() - t0, 2)
-    # the reason: recon's verdict ("result: …") where it printed one, else the last line but "wrote OUT"
-    lines = [x for x in proc.stderr.strip().splitlines() if x.strip() and not x.startswith("wrote ")]
-    lines = [x for x in lines if x.startswith("result: ")][:1] or lines
+    # the reason: recon's verdict ("result: …", on stdout) where it printed one, else its last line on stderr
+    lines = [x for x in proc.stdout.splitlines() if x.startswith("result: ")][:1]
+    lines = lines or [x for x in proc.stderr.strip().splitlines() if x.strip() and not x.startswith("recon: ")]
     status = {0: "ok", 1: "exit1", 2: "exit2"}.get(proc.returncode, "crash")
     return {"exit": proc.returncode, "status": status, "seconds": seconds, "message": lines[-1][:300] if lines else ""}
 
