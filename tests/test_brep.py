@@ -749,3 +749,46 @@ def test_reach_margin_and_box():
     assert reach.outside(inside) <= 1e-6 and reach.refusal(inside) == ""
     assert reach.outside(beyond) == pytest.approx(1.1 * reach.margin, rel=1e-6) and "refused" in reach.refusal(beyond)
     assert reach.outside(BRepBuilderAPI_MakeFace(gp_Pln()).Face()) >= 1e100  # an infinite plane (OCC's infinity)
+
+
+def test_filling_surface_keeps_its_control_net_near_the_face():
+    """MakeFilling through a noisy patch (issue 25): OCC's default approximation (degree 8, 9 segments) put the
+    poles 4.3× the face's box apart here and up to 14 part diagonals away on casting, swelling the solid's bounding
+    box and breaking fillets on it; :data:`recon.brep._filling.FILLING_APPROX` keeps them within 3× (1.4 here)."""
+    import math
+
+    from OCP.Bnd import Bnd_Box
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBndLib import BRepBndLib
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeEdge
+    from OCP.GeomAPI import GeomAPI_PointsToBSpline
+    from OCP.TColgp import TColgp_Array1OfPnt
+    from OCP.gp import gp_Pnt
+
+    from recon.brep._filling import filled_face
+
+    rng = np.random.default_rng(1)
+
+    def z(x, y):  # a smooth bump plus noise of sigma 0.005 (0.5 % of the patch)
+        return 0.15 * np.sin(3 * x) * np.sin(3 * y) + 0.005 * rng.normal()
+
+    def edge(pts):
+        arr = TColgp_Array1OfPnt(1, len(pts))
+        for i, p in enumerate(pts, 1):
+            arr.SetValue(i, gp_Pnt(*p))
+        return BRepBuilderAPI_MakeEdge(GeomAPI_PointsToBSpline(arr).Curve()).Edge()
+
+    t = np.linspace(0, 1, 20)
+    sides = [[(s, 0, z(s, 0)) for s in t], [(1, s, z(1, s)) for s in t], [(1 - s, 1, z(1 - s, 1)) for s in t],
+             [(0, 1 - s, z(0, 1 - s)) for s in t]]
+    for side, nxt in zip(sides, sides[1:] + sides[:1]):
+        side[-1] = nxt[0]  # the loop closes exactly
+    inner = np.array([(x, y, z(x, y)) for x, y in rng.uniform(0.05, 0.95, (48, 2))])
+    face = filled_face([edge(s) for s in sides], inner)
+    surf = BRep_Tool.Surface_s(face)
+    poles = np.array([[surf.Pole(i, j).Coord() for j in range(1, surf.NbVPoles() + 1)]
+                      for i in range(1, surf.NbUPoles() + 1)]).reshape(-1, 3)
+    box = Bnd_Box()
+    BRepBndLib.AddOptimal_s(face, box, False, False)
+    x0, y0, z0, x1, y1, z1 = box.Get()
+    assert np.linalg.norm(poles.max(0) - poles.min(0)) <= 3 * math.dist((x0, y0, z0), (x1, y1, z1))

@@ -58,6 +58,12 @@ AREA_RATIO_WARNING = 2.0
 FILLING_POINTS = (16, 0)
 
 
+#: MakeFilling's approximation of its plate: highest degree, most segments. OCC's default (8, 9) put casting's filled
+#: faces' poles up to 14 part diagonals away, swelling the solid's bounding box 14× (issue 25, bench/editability.md);
+#: degree 5 over up to 30 segments keeps the control net within 3× the face's own box.
+FILLING_APPROX = (5, 30)
+
+
 def filled_face(checked: list, points):
     """Fallback: a B-spline face through the boundary edges ``checked`` (:func:`checked_edges`) and mesh points
     (BRepOffsetAPI_MakeFilling).
@@ -69,6 +75,7 @@ def filled_face(checked: list, points):
     pts = pts[np.all(np.isfinite(pts), axis=1)]
     try:
         fill = BRepOffsetAPI_MakeFilling()
+        fill.SetApproxParam(*FILLING_APPROX)
         for edge in checked:
             fill.Add(edge, GeomAbs_Shape.GeomAbs_C0, True)
         for p in pts:
