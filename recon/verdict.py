@@ -571,13 +571,18 @@ def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units
     ``meshable``: it holds no faces); ``result.report["verdict"]`` is updated and the new verdict returned."""
     from .brep import write_shape
     from .brep._export import model_units
+    from .errors import ExportError, ReconError
 
     # an STL's chords within half the tolerance of the faces: the volume rule holds for the file as for the B-rep
     path = write_shape(path, result.brep, name=name, deflection=0.5 * float(result.report["tolerance"]),
                        units=units, schema=schema)
     old = result.verdict
-    with model_units(units):  # read back in the mesh's unit, the rules' unit
-        validity = read_back(path)
+    try:
+        with model_units(units):  # read back in the mesh's unit, the rules' unit
+            validity = read_back(path)
+    except ReconError as err:  # what no CAD program could read either is not left behind as a result
+        Path(path).unlink(missing_ok=True)
+        raise ExportError(f"the written {Path(path).name} could not be read back ({err}); it was removed") from err
     t = time.perf_counter()
     solid, volume, meshable = _file_rules(validity, result.mesh, _sag_of(result.mesh),
                                           float(result.report["tolerance"]), f"the written file {path.name}",

@@ -151,6 +151,21 @@ def test_the_written_file_is_read_back_in_every_format(tmp_path, capsys, suffix)
     assert solid["value"]["volume"] == pytest.approx(report["validity"]["volume"], rel=2e-3)
 
 
+def test_a_written_file_that_cannot_be_read_back_is_removed_not_left_as_a_result(tmp_path, capsys, monkeypatch):
+    """Export seed 5: the STEP writer wrote a file without a face; reading it back failed and the file stayed."""
+    import recon.verdict as verdict
+    from recon.errors import InputError
+
+    def unreadable(path):
+        raise InputError(f"STEP file {path} holds no face")
+
+    monkeypatch.setattr(verdict, "read_back", unreadable)
+    rc = main(["convert", str(FIXTURES / "prism_clean.stl"), str(tmp_path / "out.step"), "--no-deviation"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "could not be read back" in err and len(err.strip().splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []
+
+
 # --------------------------------------------------------------------------------------------------
 # Rule by rule
 # --------------------------------------------------------------------------------------------------
