@@ -58,8 +58,8 @@ AREA_RATIO_WARNING = 2.0
 FILLING_POINTS = (16, 0)
 
 
-#: MakeFilling's approximation of its plate: highest degree, most segments. OCC's default (8, 9) put casting's filled
-#: faces' poles up to 14 part diagonals away, swelling the solid's bounding box 14× (issue 25, bench/editability.md);
+#: MakeFilling's approximation of its plate: highest degree, most segments. OCC's default (8, 9) lets a high-degree
+#: net swing far outside the face (poles 14 part diagonals away, bench/editability.md), swelling the solid's box;
 #: degree 5 over up to 30 segments keeps the control net within 3× the face's own box.
 FILLING_APPROX = (5, 30)
 
