@@ -18,7 +18,7 @@ import numpy.typing as npt
 from threadpoolctl import threadpool_limits
 
 from .decompose import Decomposition, decompose
-from .errors import BrepError, InputError, ReconError
+from .errors import InputError, ReconError
 from ._progress import Count
 from ._tolerance import tolerance_for
 from .mesh import Mesh, clean_mesh, load_mesh
@@ -136,13 +136,7 @@ def convert(
     times: dict[str, float] = {}
     t = time.perf_counter()
     step("load", 0.0)
-    if isinstance(mesh, (str, os.PathLike)):
-        mesh = load_mesh(mesh)
-    elif not isinstance(mesh, Mesh):
-        if isinstance(mesh, tuple) and len(mesh) == 2:
-            mesh = clean_mesh(*mesh)
-        else:
-            raise InputError(f"convert: `mesh` must be a Mesh, a path or (vertices, faces), got {type(mesh).__name__}")
+    mesh = _as_mesh(mesh)
     times["load"] = time.perf_counter() - t
     step("load", 1.0)
 
@@ -176,14 +170,12 @@ def convert(
     step("brep", 0.0)
     kinds = _face_kinds(dec, labels)
     network = curve_network(mesh.vertices, mesh.faces, labels)
-    try:
-        areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
-        with occ_messages():
-            brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
-                               part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
-                               progress=items("brep"), mesh_points=mesh.vertices)
-    except BrepError:
-        raise
+    areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
+    with occ_messages():
+        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
+                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
+                           progress=items("brep"), mesh_points=mesh.vertices)
+    names = _face_names(brep)  # (an O(faces²) match: once, for the deviation and the report)
     times["brep"] = time.perf_counter() - t
     step("brep", 1.0)
 
@@ -195,7 +187,7 @@ def convert(
         step("deviation", 0.0)
         try:
             with occ_messages():
-                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=_face_names(brep),
+                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=names,
                               progress=items("deviation"))
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
@@ -203,10 +195,21 @@ def convert(
         times["deviation"] = time.perf_counter() - t
         step("deviation", 1.0)
 
-    report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error)
+    report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
     if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
         report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
     return Conversion(report, mesh, dec, labels, fits, brep)
+
+
+def _as_mesh(mesh) -> Mesh:
+    """A :class:`Mesh` from what :func:`convert` accepts: a Mesh, a mesh file's path, or (vertices, faces)."""
+    if isinstance(mesh, (str, os.PathLike)):
+        return load_mesh(mesh)
+    if isinstance(mesh, Mesh):
+        return mesh
+    if isinstance(mesh, tuple) and len(mesh) == 2:
+        return clean_mesh(*mesh)
+    raise InputError(f"convert: `mesh` must be a Mesh, a path or (vertices, faces), got {type(mesh).__name__}")
 
 
 #: The exact-vertex path walks the mesh's plane pieces and seeds in Python (a few ms each): beyond this many triangles
@@ -267,7 +270,7 @@ def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
     return out
 
 
-def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error=None) -> dict:
+def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error=None) -> dict:
     """The conversion's figures as strict JSON data (no NaN or infinity: None where a figure does not exist), with
     the verdict of :func:`recon.verdict.judge` on the result in memory (the command line judges the written file)."""
     from .verdict import judge, strict_json, unmeshed_names
@@ -328,7 +331,7 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, dev_error=None
     if dev_error:
         report["deviation_error"] = dev_error
         report["warnings"].append(f"deviation not measured: {dev_error}")
-    report["unmeshed_faces"] = unmeshed_names(brep.occ, _face_names(brep))  # FreeCAD would show holes there
+    report["unmeshed_faces"] = unmeshed_names(brep.occ, names)  # FreeCAD would show holes there
     report = strict_json(report)
     report["verdict"] = judge(report, mesh, labels, source="the result in memory",
                               deviation_error=dev_error).to_json()
