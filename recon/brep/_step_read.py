@@ -28,7 +28,7 @@ from OCP.XCAFDoc import XCAFDoc_DocumentTool, XCAFDoc_ShapeTool
 
 from ..errors import InputError
 
-__all__ = ["read_step", "faces_of", "read_back_shape", "read_back_validity"]
+__all__ = ["read_step", "faces_of", "read_back_shape"]
 
 log = logging.getLogger(__name__)
 
@@ -161,12 +161,3 @@ def read_back_shape(path: str | os.PathLike) -> tuple[TopoDS_Shape, tuple[str, .
     else:
         return read_step(path)
     return shape, tuple(f"face_{i}" for i in range(len(faces_of(shape))))
-
-
-def read_back_validity(path: str | os.PathLike):
-    """The :class:`recon.brep.Validity` of a written ``.step``/``.stp``, ``.igs``/``.iges`` or ``.brep`` file, read
-    back from disk: what a CAD program that opens it gets, not the shape in memory (a part scaled far out of
-    OpenCascade's precision was valid in memory and invalid in its STEP file)."""
-    from ._build import shape_validity
-
-    return shape_validity(read_back_shape(path)[0])
