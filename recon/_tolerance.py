@@ -6,7 +6,9 @@ the decomposition (a mesh) and :func:`recon.convert` call :func:`tolerance_for`.
 
 from __future__ import annotations
 
-__all__ = ["FIT_FLOOR", "MESH_FLOOR", "SIGMAS_PER_TOLERANCE", "tolerance_for"]
+import math
+
+__all__ = ["FIT_FLOOR", "MESH_FLOOR", "SIGMAS_PER_TOLERANCE", "SMOOTH_TURN", "tolerance_for"]
 
 #: The tolerance in noise σ: the 99th percentile of |N(0, σ)| is 2.58σ, so a fit of the right type passes the
 #: acceptance rule (p99 ≤ tol, max ≤ 2·tol) with room for its own parameter error, and the max over 10⁵ points
@@ -18,6 +20,11 @@ FIT_FLOOR = 1e-4
 #: Floor for a mesh, as a share of its diagonal: a tessellated CAD model has exact planes (zero noise) but its
 #: curved faces carry the exporter's rounding and chordal placement, a few 1e-4 of the diagonal.
 MESH_FLOOR = 5e-4
+#: Neighbouring triangles that turn by less than this may tessellate one curved face (CAD exporters bound the turn by
+#: their angular deflection: 0.5 rad ≈ 29° by default in OpenCascade and FreeCAD, a doubly curved face's facets turn
+#: by more across their diagonals); a larger turn is a crease, where the B-rep's edge lies on the mesh's edge and the
+#: faces meet the triangles without sag. A box's 90° and an octagonal prism's 45° are creases.
+SMOOTH_TURN = math.radians(45.0)
 
 
 def tolerance_for(sigma: float, diagonal: float, *, floor: float = FIT_FLOOR) -> float:

@@ -40,6 +40,8 @@ from typing import Any
 
 import numpy as np
 
+from ._tolerance import SMOOTH_TURN  # (one value for the verdict's sag and the B-rep's reach margin)
+
 __all__ = ["Rule", "Verdict", "judge", "triangle_sag", "overlapping_shells", "read_back", "write_checked",
            "strict_json", "unmeshed_names", "MAX_PER_TOLERANCE", "SMOOTH_TURN", "RULES"]
 
@@ -55,11 +57,6 @@ _DEVIATION_RULES = ("mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95
 #: ≈ 32 % and 6σ with 2 %: 2T leaves the fit about 2σ of its own.
 MAX_PER_TOLERANCE = 2.0
 
-#: Neighbouring triangles that turn by less than this may tessellate one curved face (CAD exporters bound the turn by
-#: their angular deflection: 0.5 rad ≈ 29° by default in OpenCascade and FreeCAD, a doubly curved face's facets turn
-#: by more across their diagonals); a larger turn is a crease, where the B-rep's edge lies on the mesh's edge and the
-#: faces meet the triangles without sag. A box's 90° and an octagonal prism's 45° are creases.
-SMOOTH_TURN = np.deg2rad(45.0)
 
 #: Points of one closed shell tested against another for :func:`overlapping_shells` (vertices first, then centroids):
 #: an overlap covering less than about 1/this of a shell's samples can go unseen.

@@ -27,6 +27,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Wire
 
 from .._parallel import Failure, FailureKind, isolated
 from ..network import CurveNetwork, NetworkGeometry
+from .._tolerance import SMOOTH_TURN
 from ..errors import BrepError
 from . import _serial  # noqa: F401  (faces cross the pipe from a child as BREP bytes)
 from ._edges import (
@@ -61,17 +62,11 @@ PRECISION_SHARE = 0.1
 OWN_SURFACE_RMS = 4.0
 
 
-#: The largest turn between neighbouring triangles of one curved face (as recon.verdict.SMOOTH_TURN): a chord c of the
-#: mesh across such a turn lies inside the true surface by at most c·tan(turn/4)/2, which bounds how far a face may
-#: bulge beyond the mesh's bounding box (:func:`reach_margin`).
-REACH_TURN = np.deg2rad(45.0)
-
-
 def reach_margin(tolerance: float, diagonal: float) -> float:
     """How far a face may reach outside the mesh's bounding box: 2T (the fit's max) plus the chord sag of the
-    longest chord the mesh can hold (its diagonal) across a turn of :data:`REACH_TURN` (≈ 0.1 × diagonal).
+    longest chord the mesh can hold (its diagonal) across the largest smooth turn, :data:`recon._tolerance.SMOOTH_TURN` (≈ 0.1 × diagonal).
     A face beyond it is not the mesh's surface: a plane or B-spline left untrimmed, a filling gone wild."""
-    return 2.0 * tolerance + 0.5 * float(np.tan(REACH_TURN / 4.0)) * diagonal
+    return 2.0 * tolerance + 0.5 * float(np.tan(SMOOTH_TURN / 4.0)) * diagonal
 
 
 #: A face whose optimal box passes the margin is triangulated to bound it closer only when that box lies within this
