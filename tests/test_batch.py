@@ -18,6 +18,7 @@ import jsonschema
 import pytest
 
 from recon.batch import BatchRow, convert_many, find_parts, name_parts
+from recon.batch._inputs import OUTPUT_FORMATS
 from recon.batch._summary import write_html
 from recon.cli import main
 from recon.verdict import schema
@@ -179,6 +180,11 @@ def test_rerun_skips_finished_parts_redoes_the_rest(local_run, external):
     report = json.loads((out / "prism.report.json").read_text())
     assert "deviation" not in report and report["verdict"]["within_tolerance"] is None
     assert report["batch"]["deviation"] is False
+    # Another format is another result; IGES (for importers without STEP) reads back as the prism's 8 faces.
+    assert run(prism, "--format", "iges") == 0 and _rows(out)["prism.stl"]["status"] == "ok"
+    from recon.brep._step_read import read_back_shape
+
+    assert len(read_back_shape(out / "prism.igs")[1]) == 8  # a name per face read back
 
 
 def test_killed_worker_stage_purged_rows_written_as_they_arrive(external, tmp_path):
@@ -395,6 +401,17 @@ def test_outputs_never_overwrite_inputs(tmp_path, capsys):
     assert (tmp_path / "a.stl").read_bytes() == before and sorted(os.listdir(tmp_path)) == ["a.stl"]
     (tmp_path / "f").write_text("x")
     assert main(["batch", str(tmp_path / "a.stl"), "--out", str(tmp_path / "f")]) == 2
+
+
+def test_cli_formats_are_the_writers():
+    from recon.cli import build_parser
+
+    args = build_parser().parse_args(["batch", "x.stl", "--out", "o", "--format", "iges"])
+    assert args.format == "iges"
+    for fmt in OUTPUT_FORMATS:  # every format the writer knows is offered, and nothing else
+        assert build_parser().parse_args(["batch", "x", "--out", "o", "--format", fmt]).format == fmt
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["batch", "x", "--out", "o", "--format", "obj"])
 
 
 def test_find_and_name_parts(tmp_path):

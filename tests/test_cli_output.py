@@ -200,6 +200,17 @@ def test_units_inch_declared_in_the_step_and_the_summary(work):
     assert all(line.count(" in (") == 3 for line in proc.stdout.splitlines() if line.startswith("deviation "))
     shape, _ = read_step(work / "out.step")
     assert shape_validity(shape).volume == pytest.approx(report["validity"]["volume"] * 25.4 ** 3, rel=1e-9)
+    # compare --units inch reads the file in the mesh's unit: the deviation convert reported, lengths in inches
+    proc = _run(work, "compare", "part.stl", "out.step", "--units", "inch", "--json", "c.json")
+    assert proc.returncode == 0, proc.stderr
+    inch = json.loads((work / "c.json").read_text())
+    assert inch["diagonal"] == pytest.approx(report["deviation"]["diagonal"], rel=1e-12)
+    assert inch["mesh_to_shape"]["max"] == pytest.approx(report["deviation"]["mesh_to_shape"]["max"], rel=1e-6)
+    assert all(line.count(" in (") == 3 for line in proc.stdout.splitlines() if line.startswith("deviation "))
+    # read in mm (the default) the shape is 25.4 times the mesh: most of it lies farther from the mesh than the
+    # part is long
+    assert _run(work, "compare", "part.stl", "out.step", "--json", "mm.json").returncode == 0
+    assert json.loads((work / "mm.json").read_text())["shape_to_mesh"]["p95"] > inch["diagonal"]
 
 
 def test_iges_output_and_schema_option(work):

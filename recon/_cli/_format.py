@@ -12,6 +12,10 @@ import math
 EXPONENT_BELOW = 1e-3
 
 
+#: --units: what the summaries call each unit.
+UNIT_LABELS = {"mm": "mm", "inch": "in", "m": "m"}
+
+
 def number(x: float | None, digits: int = 4) -> str:
     """``x`` with ``digits`` significant digits; tiny values as 1.0e-06 (two digits: they are round-off-level
     figures), never as 0.000; None, NaN or infinity as "n/a"."""

@@ -26,7 +26,8 @@ def add_parser(sub):
     where.add_argument("--scheduler", metavar="ADDRESS", help="use a running Dask cluster (tcp://HOST:PORT)")
     p.add_argument("--tolerance", type=float, metavar="T", help="fit tolerance in mesh units, for every part "
                    "(default: each part's own, as recon convert)")
-    p.add_argument("--format", choices=["step", "brep", "stl"], default="step", help="output format (default: step)")
+    p.add_argument("--format", choices=["step", "iges", "brep", "stl"], default="step",
+                   help="output format (default: step; iges for importers that read no STEP)")
     p.add_argument("--timeout", type=float, metavar="S", help="seconds one part may take before it is stopped and "
                    "counted as failed (default: no limit)")
     p.add_argument("--memory-limit", metavar="SIZE", help="memory per worker of the local cluster (Dask's worker "

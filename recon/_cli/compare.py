@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ._checks import MIN_SAMPLES
-from ._format import deviation_line
+from ._format import UNIT_LABELS, deviation_line
 
 
 def add_parser(sub):
@@ -20,6 +20,8 @@ def add_parser(sub):
     p.add_argument("shape", help="B-rep as a STEP file")
     p.add_argument("--json", required=True, metavar="R.json", help="write the report here")
     p.add_argument("--preview", metavar="P.png", help="write a colour map of the signed distance here")
+    p.add_argument("--units", choices=tuple(UNIT_LABELS), default="mm", help="the unit of the mesh's numbers: the "
+                   "STEP file is read in it, whatever unit it declares (default: mm, as recon convert's --units)")
     p.add_argument("--samples", type=int, default=None, metavar="N",
                    help=f"area-uniform samples on the B-rep, at least {MIN_SAMPLES} (default 20000)")
     p.set_defaults(func=run)
@@ -59,21 +61,23 @@ def run(args) -> int:
                   [("--json", args.json), ("--preview", args.preview)])
     _check_step(args.shape)
     vertices, faces = _load_mesh(args.mesh)
+    from ..brep._export import model_units
     from ..brep._messages import occ_messages
 
-    with occ_messages():  # OpenCascade's reader warnings to the log, not into the summary on stdout
+    # OpenCascade's reader warnings to the log, not into the summary on stdout; the shape in the mesh's unit
+    with occ_messages(), model_units(args.units):
         report = deviation(vertices, faces, args.shape, samples=args.samples)
     write_json(args.json, report.to_json())
     if args.preview:
         plot_deviation(vertices, faces, report.signed, args.preview, title=Path(args.mesh).name)
     if not args.quiet:  # the result on stdout, like convert's summary
-        print(summary(report))
+        print(summary(report, unit=UNIT_LABELS[args.units]))
         print(f"wrote {args.json}", flush=True)
     return 0
 
 
-def summary(report) -> str:
-    """The deviation both ways, one line each (lengths in the unit OpenCascade reads STEP files in: mm)."""
+def summary(report, unit: str = "mm") -> str:
+    """The deviation both ways, one line each (lengths in ``unit``, the mesh's)."""
     data = report.to_json()
-    return "\n".join(deviation_line(way, data[key], data["diagonal"])
+    return "\n".join(deviation_line(way, data[key], data["diagonal"], unit)
                      for way, key in (("mesh→shape", "mesh_to_shape"), ("shape→mesh", "shape_to_mesh")))

@@ -8,12 +8,9 @@ import time
 from pathlib import Path
 
 from ._checks import MAX_DIAGONAL, MIN_DIAGONAL
-from ._format import deviation_line, length, number
+from ._format import UNIT_LABELS, deviation_line, length, number
 
 OUTPUT_SUFFIXES = (".step", ".stp", ".igs", ".iges", ".brep", ".stl")
-
-#: --units: what the summary calls each unit.
-UNIT_LABELS = {"mm": "mm", "inch": "in", "m": "m"}
 
 
 def add_parser(sub):

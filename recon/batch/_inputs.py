@@ -16,7 +16,7 @@ from ..mesh import SUPPORTED_FORMATS
 __all__ = ["Part", "find_parts", "name_parts", "run_key", "finished_reports", "report_ok", "is_local", "OUTPUT_FORMATS"]
 
 #: ``--format`` → the output file's suffix (the writer chooses the format by it).
-OUTPUT_FORMATS = {"step": ".step", "brep": ".brep", "stl": ".stl"}
+OUTPUT_FORMATS = {"step": ".step", "iges": ".igs", "brep": ".brep", "stl": ".stl"}
 
 REPORT_SUFFIX = ".report.json"
 PREVIEW_SUFFIX = ".preview.png"

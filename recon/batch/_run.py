@@ -156,7 +156,7 @@ def convert_many(
         Worker processes of the local cluster (default: the cores available).
     tolerance : float, optional
         As :func:`recon.convert`'s.
-    format : {"step", "brep", "stl"}
+    format : {"step", "iges", "brep", "stl"}
     timeout : float, optional
         Seconds one part may take; past it the part is an ``error`` row (default: no limit).
     force : bool
