@@ -404,7 +404,8 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
         A name per face of a shape passed in (not a STEP file), in the shape's face order (``TopExp_Explorer``);
         default ``face_0``, ``face_1``, ….
     progress : callable(done, total, what), optional
-        Told the samples of the B-rep measured to the mesh (:func:`mesh_distance`), the longer direction.
+        Told the mesh points measured to the B-rep, then the samples of the B-rep measured to the mesh
+        (:func:`mesh_distance`).
 
     Returns
     -------
@@ -436,7 +437,7 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
         raise InputError(f"names: {len(names)} names for a shape of {len(brep.faces)} faces")
 
     diagonal = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    signed, nearest, _ = brep.signed_distance(v)
+    signed, nearest, _ = brep.signed_distance(v, progress=progress)
     notes = []
     lost = int((~np.isfinite(signed)).sum())
     if lost:

@@ -98,7 +98,7 @@ def test_printed_deviations_have_units_and_no_zero_percent(work):
     assert re.search(r"\(tolerance [0-9.e+-]+ mm\)", proc.stdout.splitlines()[0]), proc.stdout
 
 
-PROGRESS = re.compile(r"^recon: (fit|brep|deviation): (parts fitted|refinement passes|faces built|samples measured|far samples' triangles measured) "
+PROGRESS = re.compile(r"^recon: (fit|brep|deviation): (parts fitted|refinement passes|faces built|samples measured|mesh points measured|far samples' triangles measured) "
                       r"([0-9,]+)/([0-9,]+) \(\d+ %\)(, (about \d+ (s|min)|under 1 s) left)?$")
 
 

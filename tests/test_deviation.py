@@ -334,9 +334,15 @@ def test_signed_distance_in_chunks_equals_one_batch(monkeypatch):
     whole = brep.signed_distance(p)
     monkeypatch.setattr(_distance, "_QUERY_CHUNK", 97)
     chunked = brep.signed_distance(p)
-    for a, b in zip(whole, chunked):
+    told = []
+    monkeypatch.setattr(_distance, "_PROGRESS_CHUNK", 300)  # with a progress callback: its own chunks, told
+    counted = brep.signed_distance(p, progress=lambda *a: told.append(a))
+    for a, b, c in zip(whole, chunked, counted):
         np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(a, c)
     np.testing.assert_allclose(chunked[0], box_sdf(p, np.array([5.0, 10.0, 15.0])), atol=1e-12)
+    assert told == [(300, 1000, "mesh points measured"), (600, 1000, "mesh points measured"),
+                    (900, 1000, "mesh points measured"), (1000, 1000, "mesh points measured")]
 
 
 def test_model_deviation_of_shifted_box_and_grown_sphere():

@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 from matplotlib.path import Path as MplPath
@@ -65,6 +66,9 @@ _BAND = 2e-3
 _PCURVE_SAMPLES = 257
 # Points per batch of signed_distance.
 _QUERY_CHUNK = 100_000
+#: with a progress callback: points a chunk, a few seconds' work at most, so that a display moves (each point is
+#: measured on its own: the chunking changes no result)
+_PROGRESS_CHUNK = 20_000
 # UV grid (per side) sampling a face that BRepMesh could not triangulate.
 _GRID = 48
 
@@ -540,7 +544,8 @@ class BrepDistance:
         return np.where(sign < 0, -dist, dist), foot
 
     # ------------------------------------------------------------------ public queries
-    def signed_distance(self, points, *, neighbours: int = 16):
+    def signed_distance(self, points, *, neighbours: int = 16,
+                        progress: Callable[[int, int, str], None] | None = None):
         """Exact signed distance from each point to the nearest face of the B-rep.
 
         Parameters
@@ -548,6 +553,8 @@ class BrepDistance:
         points : (n, 3) float
         neighbours : int, keyword-only
             Samples looked at per point to find candidate faces.
+        progress : callable(done, total, what), optional
+            Told the points measured ("mesh points measured"), a chunk at a time; the results do not depend on it.
 
         Returns
         -------
@@ -561,9 +568,13 @@ class BrepDistance:
         p = np.asarray(points, dtype=float)
         if p.ndim != 2 or p.shape[1] != 3:
             raise InputError(f"points: expected an (n, 3) array, got shape {p.shape}")
-        if len(p) > _QUERY_CHUNK:  # bounded memory on million-vertex meshes: (n, k) candidate arrays per chunk
-            parts = [self.signed_distance(p[s : s + _QUERY_CHUNK], neighbours=neighbours)
-                     for s in range(0, len(p), _QUERY_CHUNK)]
+        chunk = _QUERY_CHUNK if progress is None else _PROGRESS_CHUNK
+        if len(p) > chunk:  # bounded memory on million-vertex meshes: (n, k) candidate arrays per chunk
+            parts = []
+            for s in range(0, len(p), chunk):
+                parts.append(self.signed_distance(p[s : s + chunk], neighbours=neighbours))
+                if progress is not None:
+                    progress(min(s + chunk, len(p)), len(p), "mesh points measured")
             return tuple(np.concatenate(x) for x in zip(*parts))
         n = len(p)
         k = int(min(neighbours, len(self._sample_points)))
