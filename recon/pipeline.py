@@ -21,7 +21,7 @@ from .decompose import Decomposition, decompose
 from .errors import InputError, ReconError
 from ._progress import Count
 from ._tolerance import tolerance_for
-from .mesh import Mesh, clean_mesh, load_mesh
+from .mesh import Mesh, clean_mesh, load_mesh, move_spikes
 from .segment import as_decomposition, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
 
 if TYPE_CHECKING:  # (build123d loads on first use of a result's shape; see Conversion.shape)
@@ -136,7 +136,7 @@ def convert(
     times: dict[str, float] = {}
     t = time.perf_counter()
     step("load", 0.0)
-    mesh = _as_mesh(mesh)
+    mesh, spikes = move_spikes(_as_mesh(mesh))  # a scanner's outliers, before anything measures the mesh
     times["load"] = time.perf_counter() - t
     step("load", 1.0)
 
@@ -198,6 +198,12 @@ def convert(
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
     if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
         report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
+    if len(spikes.vertices):
+        report["mesh"]["spikes"] = spikes.to_json(mesh.diagonal)
+        report["warnings"].append(
+            f"{len(spikes.vertices)} vertices stood off the surface as spikes (up to "
+            f"{report['mesh']['spikes']['max_moved_pct']:.2g} % of the diagonal) and were moved onto their "
+            "neighbours' surface; the deviation is measured to where they were moved")
     return Conversion(report, mesh, dec, labels, fits, brep)
 
 

@@ -2,6 +2,7 @@
 
 from ._clean import DEFAULT_WELD_RELATIVE, clean_mesh, input_labels
 from ._load import SUPPORTED_FORMATS, load_mesh, read_triangles
+from ._spikes import SpikeReport, move_spikes
 from ._topology import stable_argsort, unique, unique_first
 from ._types import CleanReport, Mesh, VertexFaces
 
@@ -10,10 +11,12 @@ __all__ = [
     "DEFAULT_WELD_RELATIVE",
     "Mesh",
     "SUPPORTED_FORMATS",
+    "SpikeReport",
     "VertexFaces",
     "clean_mesh",
     "input_labels",
     "load_mesh",
+    "move_spikes",
     "read_triangles",
     "stable_argsort",
     "unique",
