@@ -31,8 +31,9 @@ SPIKE_SIGMAS = 8.0
 #: gives a clean ring (h/2R), however small its neighbours' noise.
 SPIKE_SLOPE = 0.25
 
-#: A tent all round: every triangle of the vertex's fan turns from the triangle beyond it by at least half the
-#: least tent's slope angle (a corner's fan lies flat on its faces' other triangles along some link edge).
+#: A tent all round: the triangles of the vertex's fan turn from the triangles beyond them by at least half the
+#: least tent's slope angle, in the median (a corner's fan lies flat on its faces' other triangles, but for the
+#: link edges on its creases; a spike pushed sideways folds a triangle or two of its fan).
 LINK_TURN = 0.5 * float(np.arctan(SPIKE_SLOPE))
 
 
@@ -77,20 +78,23 @@ def _ring_planes(vertices: np.ndarray, edges: np.ndarray, interior: np.ndarray):
     return centroid, normal, residual, radius
 
 
-def _least_link_turn(mesh: Mesh) -> np.ndarray:
-    """Per vertex: the least angle between a triangle of its fan and the triangle across that triangle's far edge
-    (the edge opposite the vertex, on its link); π where it has none."""
+def _median_link_turn(mesh: Mesh) -> np.ndarray:
+    """Per vertex: the median angle between a triangle of its fan and the triangle across that triangle's far edge
+    (the edge opposite the vertex, on its link; the lower middle one of an even count); 0 where it has none."""
     pairs = mesh.face_adjacency
     shared = mesh.face_adjacency_edges
-    f = mesh.faces
-    normals = mesh.face_normals
-    turn = np.arccos(np.clip(np.einsum("ij,ij->i", normals[pairs[:, 0]], normals[pairs[:, 1]]), -1.0, 1.0))
-    least = np.full(len(mesh.vertices), np.pi)
-    for side in (0, 1):  # the vertex of each triangle of the pair that is not on the shared edge
-        tri = f[pairs[:, side]]
-        far = tri.sum(axis=1) - shared.sum(axis=1)
-        np.minimum.at(least, far, turn)
-    return least
+    cos = np.einsum("ij,ij->i", mesh.face_normals[pairs[:, 0]], mesh.face_normals[pairs[:, 1]])
+    turn = np.arccos(np.clip(cos, -1.0, 1.0))
+    # the vertex of each triangle of a pair that is not on their shared edge
+    far = np.concatenate([mesh.faces[pairs[:, side]].sum(axis=1) - shared.sum(axis=1) for side in (0, 1)])
+    turns = np.concatenate([turn, turn])
+    order = np.lexsort((turns, far))
+    counts = np.bincount(far, minlength=len(mesh.vertices))
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    median = np.zeros(len(mesh.vertices))
+    has = counts > 0
+    median[has] = turns[order[starts[has] + (counts[has] - 1) // 2]]
+    return median
 
 
 def find_spikes(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +116,7 @@ def find_spikes(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
     spike = interior & (offset > SPIKE_SIGMAS * scale) & (offset > SPIKE_SLOPE * radius)
     spike &= offset > MESH_FLOOR * mesh.diagonal
     if spike.any():
-        spike &= _least_link_turn(mesh) > LINK_TURN
+        spike &= _median_link_turn(mesh) > LINK_TURN
     return np.flatnonzero(spike), centroid[spike]
 
 

@@ -6,7 +6,7 @@ something the labels are tidied (:func:`tidy`) and the faces refitted. :class:`S
 the tolerance, the noise and the memo of fits made. numpy/scipy only.
 """
 
-from ._exact import as_decomposition, exact_faces, exact_tessellation, plane_atoms, roundoff
+from ._exact import as_decomposition, coplanar_pairs, exact_faces, exact_tessellation, plane_atoms, roundoff
 from ._context import SegmentContext, fit_parts, vertex_normals
 from ._grow import dissolve_explained, dissolve_misfits, grow_faces
 from ._merge import merge_round_bands, merge_same_surface
@@ -17,6 +17,7 @@ from ._tidy import cut_unbounded, tidy
 
 __all__ = [
     "as_decomposition",
+    "coplanar_pairs",
     "exact_faces",
     "exact_tessellation",
     "plane_atoms",
