@@ -286,9 +286,11 @@ def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
     """Crank's torus/plane edge, made of a plane (x = 0) and a cylinder about an axis along y that cuts it in two
     lines, z = 0 and z = 1, and bulges 11.6 tolerances through it between them. The mesh (flat, in the plane) puts
     the edge across the gap: a chord from (0, 0, 1) down to (0, 0, 0), then 0.03 along y. No point near the
-    chord's middle lies on both surfaces, so it is not refined, and the quadratic through the 3 points bows far
-    out sideways (more than STRAY_FACTOR tolerances from the chords) while lying off both surfaces as much as the
-    chord does. The edge is the polyline: its points, nothing the surfaces or the mesh do not show."""
+    chord's middle lies on both surfaces, so it is not refined onto them, and the quadratic through the 3 points
+    bows far out sideways (more than STRAY_FACTOR tolerances from the chords) while lying off both surfaces as much
+    as the chord does. The edge is a polyline: the mesh's points, and (since the chord lies 11.6 tolerances off the
+    cylinder, past the sewing tolerance) points midway between the two surfaces along the chord: nothing sideways,
+    nothing the surfaces or the mesh do not show, and within the sewing tolerance of both."""
     from scipy.interpolate import BSpline
 
     from recon.network._placement import STRAY_FACTOR
@@ -322,9 +324,12 @@ def test_a_curve_that_strays_from_points_and_surfaces_is_the_polyline():
     c = geo.curves[e]
     assert c.kind == "bspline" and c.spline.degree == 1
     np.testing.assert_allclose(c.spline.control_points, pts)
-    # every point of it is on the chords: in the plane, and between y = 0 and 0.03
+    # every point of it is between y = 0 and 0.03 (no sideways bow), and within the sewing tolerance of both surfaces
     edge = BSpline(c.spline.knots, c.spline.control_points, 1)(np.linspace(0, 1, 101))
-    assert np.max(np.abs(edge[:, 0])) <= 1e-12 and edge[:, 1].min() >= -1e-12 and edge[:, 1].max() <= 0.03 + 1e-12
+    assert edge[:, 1].min() >= -1e-12 and edge[:, 1].max() <= 0.03 + 1e-12
+    for part in (0, 1):
+        assert np.max(np.linalg.norm(project(part, edge)[0] - edge, axis=1)) <= STRAY_FACTOR * tol
+    assert np.max(np.linalg.norm(project(1, pts)[0] - pts, axis=1)) < bulge  # nearer the cylinder than the chord
 
 
 def test_a_chord_is_not_refined_onto_another_stretch_of_its_edge():

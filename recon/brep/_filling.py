@@ -11,6 +11,7 @@ from OCP.BRepCheck import BRepCheck_Analyzer
 from OCP.BRepOffsetAPI import BRepOffsetAPI_MakeFilling
 from OCP.GeomAbs import GeomAbs_Shape
 from OCP.TopAbs import TopAbs_FACE
+from OCP.TopExp import TopExp
 from OCP.TopoDS import TopoDS
 
 from .._parallel import time_limits_fired
@@ -94,11 +95,71 @@ def filled_face(checked: list, points):
     return face
 
 
+def wire_joins(checked: list) -> str:
+    """Why ``BRepOffsetAPI_MakeFilling`` would fail to make its wire of the loop ``checked``, or "".
+
+    MakeFilling first makes wires of its boundary edges (``BRepFill_Filling::BuildWires``): from the first edge on,
+    it adds the first edge left that shares a vertex with the wire's two ends (``TopExp::Vertices``), else one with
+    a vertex within both tolerances of an end, through ``BRepLib_MakeWire``, which joins a new edge's end to any
+    vertex of the wire so far within either one's tolerance. Vertex tolerances that neighbours' repairs grew past
+    the distance to another vertex of the loop (crank's linear_138: 16 T against 10.5 T) make such a join; the wire
+    then has no two ends (null vertices) and MakeFilling raises "BRep_Tool:: TopoDS_Vertex hasn't gp_Pnt". The same
+    steps are taken here on copies of the edges (the joins change vertices in place) and the loop refused there.
+    """
+    from OCP.BRep import BRep_Builder
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
+    from OCP.BRepLib import BRepLib_MakeWire
+    from OCP.TopoDS import TopoDS_Compound, TopoDS_Iterator, TopoDS_Vertex
+
+    builder = BRep_Builder()
+    group = TopoDS_Compound()
+    builder.MakeCompound(group)
+    for edge in checked:
+        builder.Add(group, edge)
+    copied = BRepBuilderAPI_Copy(group, True, False).Shape()  # (held: the iterator keeps a reference only)
+    it = TopoDS_Iterator(copied)
+    rest = []
+    while it.More():
+        rest.append(TopoDS.Edge_s(it.Value()))
+        it.Next()
+
+    def ends(shape):
+        a, b = TopoDS_Vertex(), TopoDS_Vertex()
+        TopExp.Vertices_s(shape, a, b)
+        return a, b
+
+    def close(v, w):
+        d = BRep_Tool.Pnt_s(v).Distance(BRep_Tool.Pnt_s(w))
+        return d < BRep_Tool.Tolerance_s(v) and d < BRep_Tool.Tolerance_s(w)
+
+    total = len(rest)
+    while rest:
+        wire = BRepLib_MakeWire()
+        wire.Add(rest.pop(0))
+        while True:
+            wire_ends = ends(wire.Wire())
+            if any(v.IsNull() for v in wire_ends):
+                return (f"after {total - len(rest)} of its {total} edges MakeFilling's wire has no ends: vertex "
+                        "tolerances reach other vertices of the loop, which it joins (BRep_Tool:: TopoDS_Vertex "
+                        "hasn't gp_Pnt)")
+            pick = next((k for k, e in enumerate(rest) if any(v.IsSame(w) for v in wire_ends for w in ends(e))), None)
+            if pick is None:
+                pick = next((k for k, e in enumerate(rest) if any(close(v, w) for v in wire_ends for w in ends(e))),
+                            None)
+            if pick is None:
+                break
+            wire.Add(rest.pop(pick))
+    return ""
+
+
 def isolated_filled_face(loops, edges, points, context, *, timeout: float = FILLING_TIMEOUT):
     """:func:`filled_face` in a child process (:func:`face_in_child`); returns the face and its surface."""
     if len(loops) != 1:
         raise BrepError(f"MakeFilling fallback needs a single boundary loop, the part has {len(loops)}")
     checked = checked_edges(loops[0], edges, context)
+    joined = wire_joins(checked)
+    if joined:
+        raise BrepError(f"MakeFilling refused: {joined}")
     face = face_in_child(filled_face, (checked, points), "BRepOffsetAPI_MakeFilling", timeout)
     return face, BRep_Tool.Surface_s(face)
 

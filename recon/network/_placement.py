@@ -169,6 +169,46 @@ def _nearest_segment(x, pts) -> np.ndarray:
     return np.argmin(np.linalg.norm(w - t[:, :, None] * d[None, :, :], axis=2), axis=1)
 
 
+def _off_surfaces(x, left: int, right: int, project: Projector) -> np.ndarray:
+    """``(k,)``: each point's larger distance to the edge's two surfaces (its one surface on an open boundary)."""
+    off = np.zeros(len(x))
+    for p in (left, right):
+        if p != OUTSIDE:
+            off = np.maximum(off, np.linalg.norm(project(p, x)[0] - x, axis=1))
+    return off
+
+
+def _split_midway(pts, left: int, right: int, project: Projector, *, tolerance: float, reach: float,
+                  max_points: int):
+    """The polyline with points added midway between the two surfaces where its chords lie off them.
+
+    Where two fits touch at a grazing angle (a fillet's tangent edge, a thin tongue's tip) a chord's midpoint
+    reaches no point on both (:func:`_refined` leaves the chord), and the place along the surfaces where they come
+    closest is undetermined: the intersection of two nearly tangent fits wanders sideways. Each round gives every
+    chord longer than ``tolerance`` the point midway between its midpoint's projections onto the two surfaces, where
+    that point lies within ``reach`` of both, nearer them than the midpoint and more than ``tolerance`` from it: it
+    moves along the surfaces' normals only, by half the midpoint's distance to the farther one, never sideways.
+    """
+    for _ in range(REFINE_ROUNDS):
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        long = np.flatnonzero(seg > tolerance)
+        room = max_points - len(pts)
+        if not len(long) or room <= 0:
+            break
+        mids = 0.5 * (pts[long] + pts[long + 1])
+        q = 0.5 * (project(left, mids)[0] + project(right, mids)[0])
+        gap = _off_surfaces(q, left, right, project)
+        take = (gap <= reach) & (gap < _off_surfaces(mids, left, right, project))
+        take &= np.linalg.norm(q - mids, axis=1) > tolerance
+        if not take.any():
+            break
+        keep = np.flatnonzero(take)
+        keep = keep[np.argsort(-seg[long[keep]], kind="stable")[:room]]
+        keep.sort()
+        pts = np.insert(pts, long[keep] + 1, q[keep], axis=0)
+    return pts
+
+
 def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float, iterations: int, max_points: int):
     """The edge polyline with points added where a chord strays more than ``tolerance`` from the edge.
 
@@ -190,10 +230,7 @@ def _refined(pts, left: int, right: int, project: Projector, *, tolerance: float
         on = _onto_edge(mids, left, right, project, iterations)
         # Only points that reached both surfaces: where the surfaces meet tangentially or not at all near the
         # chord, the edge is no better defined than the chord itself.
-        gap = np.zeros(len(on))
-        for p in (left, right):
-            if p != OUTSIDE:
-                gap = np.maximum(gap, np.linalg.norm(project(p, on)[0] - on, axis=1))
+        gap = _off_surfaces(on, left, right, project)
         # and a sagitta's distance away, not a far crossing of the two surfaces: a quarter circle's sagitta is
         # 0.21 of its chord, a half circle's 0.5.
         moved = np.linalg.norm(on - mids, axis=1)
@@ -283,6 +320,14 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         except InputError as err:  # a degenerate edge (all its points coincide): the B-rep reports it
             notes.append(f"network_geometry: edge {e}: {err}")
             return pts, gap, point_curve(pts), notes
+        if trusted and not closed:
+            placed = len(pts)
+            pts, curve = _within_sewing(pts, curve, int(left), int(right), project, tolerance=tolerance,
+                                        max_points=max_points, fit_curve=fit_curve)
+            if len(pts) > placed:
+                gap = max(gap, float(np.max(_off_surfaces(pts[1:-1], int(left), int(right), project))))
+                notes.append(f"network_geometry: edge {e}: placed midway between its surfaces where they do not "
+                             f"meet, within {gap / tolerance:.3g} tolerances of both")
         if trusted and _strays(curve, pts, int(left), int(right), project, tolerance):
             notes.append(f"network_geometry: edge {e}: its smooth curve strays from its points and their surfaces: "
                          "the polyline is the edge")
@@ -304,6 +349,60 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
     return NetworkGeometry(points=points, vertex_gap=vgap, coords=np.concatenate(out) if out else np.empty((0, 3)),
                            offsets=np.asarray(offs, dtype=np.int64), edge_gap=np.asarray(egap),
                            curves=tuple(curves))
+
+
+def _curve_points(curve: EdgeCurve, n: int) -> np.ndarray:
+    """``(n, 3)`` points along ``curve`` (its start alone for a point curve)."""
+    if curve.kind == "circle" and curve.circle is not None:
+        return curve.circle.evaluate(np.linspace(curve.t0, curve.t1, n))
+    if curve.spline is not None:
+        return curve.spline.evaluate(np.linspace(*curve.spline.domain, n))
+    return curve.start + np.linspace(0.0, 1.0, n)[:, None] * (curve.end - curve.start)
+
+
+def _from_points(x, pts) -> float:
+    """The largest distance of the points ``x`` to the polyline ``pts`` (sampled at 8 points per curve sample)."""
+    from scipy.spatial import cKDTree
+
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    along = np.linspace(0.0, s[-1], 8 * len(x))
+    on_poly = np.column_stack([np.interp(along, s, pts[:, j]) for j in range(3)])
+    return float(np.max(cKDTree(on_poly).query(x)[0]))
+
+
+def _within_sewing(pts, curve: EdgeCurve, left: int, right: int, project: Projector, *, tolerance: float,
+                   max_points: int, fit_curve):
+    """``(pts, curve)``, refined where the curve lies more than the sewing tolerance off a surface or its points.
+
+    A chord of a CAD tessellation where two fits touch at a grazing angle (a fillet's tangent edge, a thin tongue's
+    tip) has no point on both surfaces to refine it onto: its midpoint stays a sagitta inside the curved one, and the
+    chord, or the curve through it, lies farther off that surface than sewing bridges, past what the face's ShapeFix
+    may grow the edge's tolerance to; a cubic through a long last chord can bow sideways across its neighbour's
+    edge (crank's tongue, bench/brep.md). Such an edge gets points midway between its surfaces
+    (:func:`_split_midway`), each within the sewing tolerance of both; through them the fitted curve, or the
+    polyline where that strays from them by more than the sewing tolerance; kept when it is nearer its surfaces and
+    points (the larger distance) than the old one.
+    """
+    sewing = STRAY_FACTOR * tolerance
+
+    def worst(c, p):  # the curve's larger distance to the surfaces and to its points
+        x = _curve_points(c, min(STRAY_SAMPLES, 4 * (len(p) - 1) + 1))
+        return max(float(np.max(_off_surfaces(x, left, right, project))), _from_points(x, p))
+
+    before = worst(curve, pts)
+    if before <= sewing:
+        return pts, curve
+    more = _split_midway(pts, left, right, project, tolerance=tolerance, reach=sewing, max_points=max_points)
+    if len(more) == len(pts):
+        return pts, curve
+    try:
+        again = fit_curve(more, closed=False, tolerance=tolerance)
+    except InputError:
+        return pts, curve
+    x = _curve_points(again, min(STRAY_SAMPLES, 4 * (len(more) - 1) + 1))
+    if _from_points(x, more) > sewing:
+        again = polyline_curve(more)
+    return (more, again) if worst(again, more) < before else (pts, curve)
 
 
 #: Seconds the first process waits at least for the second's answer once its own share is done (else twice the
