@@ -7,8 +7,9 @@ Output: the result's summary goes to stdout (``recon convert a.stl b.step > summ
 progress and errors go to stderr; ``-q`` prints errors only.
 
 Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), 2 bad input,
-an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 an
-internal error (a bug: one line, the traceback with ``-v``), 128 + the signal when interrupted (130 SIGINT,
+an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 no result:
+an internal error (a bug: one line, the traceback with ``-v``) or a B-rep recon could not build or write (a
+:class:`~recon.errors.BrepError`: "error: no result: …"), 128 + the signal when interrupted (130 SIGINT,
 143 SIGTERM), 141 without a word when the reader of stdout or stderr went away (``recon convert … | head -1``: what
 a process killed by SIGPIPE returns, as Unix tools do; the output file is complete, the summary comes after it).
 """
@@ -46,7 +47,8 @@ log = logging.getLogger("recon")
 
 _EPILOG = ("output: the summary on stdout; warnings, progress and errors on stderr (-q: errors only). "
            "exit codes: 0 done and good; 1 a result written that is not good (the summary says why); 2 bad input, "
-           "option or output path, or not enough memory; 3 internal error (run with -v for the traceback); "
+           "option or output path, or not enough memory; 3 no result: recon could not build the B-rep, or an internal "
+           "error (run with -v for the traceback); "
            "130 interrupted (SIGINT), 143 terminated (SIGTERM), 141 the reader of the output went away (| head)")
 
 
@@ -154,7 +156,7 @@ def _check_address_space(command: str) -> None:
 
 def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, str]:
     """The exit code and the one line an error is reported with."""
-    from .errors import ReconError
+    from .errors import BrepError, ReconError
 
     if guard.signum is not None:  # an import turns it into ImportError, a worker into anything
         return guard.exit_code(), guard.message()
@@ -163,6 +165,8 @@ def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, st
     if isinstance(err, BrokenPipeError):
         _drop_closed_streams()
         return EXIT_BROKEN_PIPE, ""  # the reader stopped reading: nothing to tell, and nowhere to tell it
+    if isinstance(err, BrepError):  # recon's own failure on a good mesh (nothing written), not the user's bad input
+        return EXIT_INTERNAL, f"error: no result: {err}"
     if isinstance(err, ReconError):
         return EXIT_BAD_INPUT, f"error: {err}"
     if isinstance(err, MemoryError) or _out_of_memory(err):  # numpy's _ArrayMemoryError included

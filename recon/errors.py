@@ -1,6 +1,7 @@
 """Errors recon raises. One root, a few children (after shapely's ``errors.py``).
 
-The CLI turns any :class:`ReconError` into one line on stderr and exit code 2.
+The CLI turns any :class:`ReconError` into one line on stderr and exit code 2 (bad input), but a
+:class:`BrepError` into exit code 3 (no result): a mesh recon could not make a B-rep of is recon's failure.
 """
 
 __all__ = [
@@ -35,7 +36,7 @@ class FitError(ReconError):
 
 
 class BrepError(ReconError):
-    """OpenCascade could not build or repair the B-rep."""
+    """OpenCascade could not build, repair or write the B-rep (recon's failure, not the input's: exit code 3)."""
 
 
 class ExportError(ReconError):

@@ -566,10 +566,15 @@ def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units
     """Write ``result``'s B-rep (:func:`recon.brep.write_shape`, with its ``units`` and ``schema``), read the file
     back and judge the ``solid``, ``volume`` and ``meshable`` rules on what it holds (an STL keeps the B-rep's
     ``meshable``: it holds no faces); ``result.report["verdict"]`` is updated and the new verdict returned."""
+    from OCP.TopAbs import TopAbs_FACE
+
     from .brep import write_shape
     from .brep._export import model_units
-    from .errors import ExportError, ReconError
+    from .brep._result import count_shapes
+    from .errors import BrepError, ReconError
 
+    if count_shapes(result.brep.occ, TopAbs_FACE) == 0:  # (nothing to write: no file, rather than an empty one)
+        raise BrepError("the B-rep holds no face")
     # an STL's chords within half the tolerance of the faces: the volume rule holds for the file as for the B-rep
     path = write_shape(path, result.brep, name=name, deflection=0.5 * float(result.report["tolerance"]),
                        units=units, schema=schema)
@@ -579,7 +584,8 @@ def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units
             validity = read_back(path)
     except ReconError as err:  # what no CAD program could read either is not left behind as a result
         Path(path).unlink(missing_ok=True)
-        raise ExportError(f"the written {Path(path).name} could not be read back ({err}); it was removed") from err
+        # recon's B-rep, not the user's path: the file was written, what it holds is unreadable
+        raise BrepError(f"the written {Path(path).name} could not be read back ({err}); it was removed") from err
     t = time.perf_counter()
     solid, volume, meshable = _file_rules(validity, result.mesh, _sag_of(result.mesh),
                                           float(result.report["tolerance"]), f"the written file {path.name}",

@@ -735,6 +735,46 @@ def test_a_face_reaching_far_outside_the_mesh_is_refused_and_the_next_way_tried(
     assert res.ok and res.validity.n_faces == 6 and res.validity.volume == pytest.approx(6000.0, rel=1e-5)
 
 
+@pytest.mark.parametrize("far", ["near", "wild"])
+def test_a_part_whose_every_face_is_refused_keeps_the_nearest_unless_wild(sharp_box, monkeypatch, far):
+    """export seeds 5 and 38: both parts' faces all reached past the margin, every one was refused and the run
+    ended with no result (exit 2). The nearest refused face within REACH_MESHED diagonals is kept, with a warning
+    naming its reach (the deviation judges it); a wild one (1e10 out) still leaves a hole."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
+    from OCP.gp import gp_Pln
+
+    from recon.brep import _strategies
+    from recon.brep._faces import Reach
+
+    v, f, lab = sharp_box
+    margin = Reach.of(v, 0.01).margin
+    reaches = {"near": [2.0 * margin, 1.5 * margin], "wild": [1e10, 2e10]}[far]
+
+    def past(reach):
+        face = BRepBuilderAPI_MakeFace(gp_Pln(), -15.0, 15.0 + reach, -10.0, 10.0).Face()
+
+        def strategy(job, message):
+            if job.part != 4:
+                return _strategies._none(message)
+            return _strategies.Attempt(face, (30.0 + reach) * 20.0, _strategies.FaceStatus.OK, message)
+        strategy.__name__ = f"past_{reach:g}"
+        return strategy
+
+    def not_for_4(strategy):
+        return lambda job, message: _strategies._none(message) if job.part == 4 else strategy(job, message)
+
+    order = _strategies.ORDERS["own surface"]
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", (*map(past, reaches), *map(not_for_4, order)))
+    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01, mesh_points=v)
+    rec = {r.part: r for r in res.faces}
+    assert all(rec[p].face is not None for p in (0, 1, 2, 3, 5))
+    if far == "near":  # the nearer of the two: 1.5 margins out, its area (30 + 1.5 m) × 20
+        assert rec[4].face is not None and rec[4].area == pytest.approx((30.0 + 1.5 * margin) * 20.0)
+        assert sum(f"kept the nearest, by past_{1.5 * margin:g}" in w for w in res.warnings) == 1
+    else:
+        assert rec[4].face is None and rec[4].status == "failed"
+
+
 def test_reach_margin_and_box():
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.gp import gp_Pln

@@ -53,10 +53,22 @@ def test_slot_prism_is_two_cylinders_and_four_planes():
     assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 2, "plane": 4}
 
 
-@pytest.mark.parametrize("seed", [6, 19, 36, 56])
+def test_a_notch_drawn_as_three_quads_is_its_cylinder_not_a_sphere_nor_planes():
+    """Export seed 20: a cylinder's short arc drawn as three quads was seeded as the simplest surface holding its two
+    arcs of vertices, a sphere (two coaxial circles of one radius lie on a sphere), whose chords lie 12x farther from it
+    than the cylinder's; judged by that sphere's sag the three quads were dropped as planes (11 faces for 9). Judged
+    by the best type, the cylinder (its quads' edges are rulings on it), they are the notch's face."""
+    solid = bd.Box(20, 20, 3) - bd.Cylinder(3, 3) - bd.Pos(14.5, 0, 0) * bd.Cylinder(4.7, 3)
+    assert len(solid.faces()) == 9
+    found = _faces(_export(solid, 2e-3, 0.5))
+    assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 2, "plane": 7}
+
+
+@pytest.mark.parametrize("seed", [6, 19, 20, 36, 56])
 def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     """Parts whose faces the first seeds split or merged with a neighbour's strips: a slot's side with the end strips
-    of its half-cylinders (36), cylinders along a torus (19), fillet chains (6), a cylinder drawn as a sphere (56)."""
+    of its half-cylinders (36), cylinders along a torus (19), fillet chains (6), a cylinder drawn as a sphere (56), two
+    counterbore arcs of three quads dropped as planes (20)."""
     from bench.corpus.truth import materialise
 
     truth = materialise(seed, "export", tmp_path)

@@ -162,7 +162,44 @@ def test_a_written_file_that_cannot_be_read_back_is_removed_not_left_as_a_result
     monkeypatch.setattr(verdict, "read_back", unreadable)
     rc = main(["convert", str(FIXTURES / "prism_clean.stl"), str(tmp_path / "out.step"), "--no-deviation"])
     err = capsys.readouterr().err
-    assert rc == 2 and "could not be read back" in err and len(err.strip().splitlines()) == 1, err
+    # recon's B-rep failed, not the user's input: exit 3 (no result), not 2 (bad input)
+    assert rc == 3 and "no result: " in err and "could not be read back" in err
+    assert len(err.strip().splitlines()) == 1, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_b_rep_without_a_face_is_no_result_exit_3_not_bad_input(tmp_path, capsys, monkeypatch):
+    """Export seeds 5 and 38 (issue 22): no part got a face, or the faces written were none a reader could find, and
+    the run ended with exit 2, 'bad input', for a mesh that is a good closed one. A B-rep recon cannot build or write
+    is its own failure: one line 'error: no result: …', exit 3, nothing written."""
+    from recon.brep import _strategies
+
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", ())
+    monkeypatch.setitem(_strategies.ORDERS, "filling first", ())
+    rc = main(["convert", str(FIXTURES / "prism_clean.stl"), str(tmp_path / "out.step"), "--no-deviation"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 3 and len([x for x in err if "error" in x]) == 1, err
+    assert "error: no result: none of the" in err[-1] and "parts got a face" in err[-1], err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_checked_refuses_a_result_without_a_face(tmp_path):
+    """Nothing to write is no result (BrepError), not an empty STEP file left behind."""
+    import dataclasses
+
+    from OCP.BRep import BRep_Builder
+    from OCP.TopoDS import TopoDS_Compound
+
+    from recon.errors import BrepError
+    from recon.pipeline import convert
+    from recon.verdict import write_checked
+
+    result = convert(str(FIXTURES / "prism_clean.stl"), deviation=False, jobs=1)
+    empty = TopoDS_Compound()
+    BRep_Builder().MakeCompound(empty)
+    result = dataclasses.replace(result, brep=dataclasses.replace(result.brep, occ=empty))
+    with pytest.raises(BrepError, match="holds no face"):
+        write_checked(result, tmp_path / "out.step")
     assert list(tmp_path.iterdir()) == []
 
 

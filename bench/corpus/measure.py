@@ -60,7 +60,7 @@ def run_recon(mesh: Path, out: Path, report: Path, *, timeout: float, memory_mb:
     # the reason: recon's verdict ("result: …", on stdout) where it printed one, else its last line on stderr
     lines = [x for x in proc.stdout.splitlines() if x.startswith("result: ")][:1]
     lines = lines or [x for x in proc.stderr.strip().splitlines() if x.strip() and not x.startswith("recon: ")]
-    status = {0: "ok", 1: "exit1", 2: "exit2"}.get(proc.returncode, "crash")
+    status = {0: "ok", 1: "exit1", 2: "exit2", 3: "exit3"}.get(proc.returncode, "crash")  # 3: no result (a BrepError)
     return {"exit": proc.returncode, "status": status, "seconds": seconds, "message": lines[-1][:300] if lines else ""}
 
 

@@ -112,10 +112,17 @@ class Reach:
     def refusal(self, face) -> str:
         """Why ``face`` is refused for reaching too far outside the mesh, or "" when it stays within the margin."""
         far = self.outside(face)
-        if far <= self.margin:
-            return ""
+        return "" if far <= self.margin else self.why(far)
+
+    def why(self, far: float) -> str:
+        """The reason a face reaching ``far`` outside the mesh's box (past the margin) is refused."""
         return (f"its face reaches {far:.4g} outside the mesh's bounding box (more than the margin {self.margin:.4g}: "
                 "a surface left untrimmed or a filling gone wild); refused")
+
+    def wild(self, far: float) -> bool:
+        """Whether a face reaching ``far`` outside is wild: farther than :data:`REACH_MESHED` diagonals, where
+        meshing it for the deviation took minutes and gigabytes; nearer, a refused face is still measurable."""
+        return not far <= REACH_MESHED * self.diagonal
 
     def _box_beyond(self, x0, y0, z0, x1, y1, z1) -> float:
         return float(max(np.max(self.lo - np.array([x0, y0, z0])), np.max(np.array([x1, y1, z1]) - self.hi)))

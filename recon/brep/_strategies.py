@@ -191,12 +191,29 @@ def _first_message(job: FaceJob) -> str:
     return "its fit is not within tolerance" if job.model is not None else "it has no fitted surface"
 
 
+def _nearest_refused(job: FaceJob, refused: list, message: str, warnings: list) -> Attempt:
+    """The last resort of a part whose every face was refused for its reach: the nearest of them when it is not wild
+    (within :data:`recon.brep._faces.REACH_MESHED` diagonals, where the deviation can still mesh and judge it). A face
+    past the margin closes the solid; a hole leaves it open, or a part of one face leaves the result faceless (export
+    seeds 5 and 38: every face of their two parts refused, no result at all)."""
+    tame = [r for r in refused if job.reach is not None and not job.reach.wild(r[0])]
+    if not tame:
+        warnings.append(f"{job.name}: no face ({message})")
+        return _none(message)
+    far, name, got = min(tame, key=lambda r: r[0])
+    warnings.extend(got.warnings)
+    warnings.append(f"{job.name}: every face it got reaches past the margin; kept the nearest, by {name}, which "
+                    f"reaches {far:.4g} outside the mesh's bounding box: the deviation judges it")
+    return got
+
+
 def build_face(job: FaceJob, warnings: list) -> FaceRecord:
     """The part's face by the first strategy of its order that gives one (``FAILED`` and no face if none does);
     what each says about the face is appended to ``warnings``."""
     order = ORDERS["own surface" if job.fit_ok or job.near else "filling first"]
     message = _first_message(job)
     got = _none(message)
+    refused: list[tuple[float, str, Attempt]] = []  # (how far out, by which strategy, its face): the last resort
     for strategy in order:
         fired = time_limits_fired()
         got = strategy(job, message)
@@ -208,15 +225,16 @@ def build_face(job: FaceJob, warnings: list) -> FaceRecord:
             job.fill_budget.left = 0  # (the build has failed: no more fillings, each of which could hang as long)
             warnings.append(f"{job.name}: no face ({message})")
             break
-        refused = job.reach.refusal(got.face) if got.face is not None and job.reach is not None else ""
-        if refused:
-            got = _none(_join(message, f"{strategy.__name__}: {refused}"))
+        far = job.reach.outside(got.face) if got.face is not None and job.reach is not None else 0.0
+        if job.reach is not None and far > job.reach.margin:
+            refused.append((far, strategy.__name__, got))
+            got = _none(_join(message, f"{strategy.__name__}: {job.reach.why(far)}"))
             message = got.message
         if got.face is not None:
             warnings.extend(got.warnings)
             break
     else:
-        warnings.append(f"{job.name}: no face ({message})")
+        got = _nearest_refused(job, refused, message, warnings)
     if got.status.own:
         surface_type = job.model.kind
     else:

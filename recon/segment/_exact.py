@@ -403,19 +403,18 @@ def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, 
     return int((np.abs(fit.distance(mids)) <= eps).sum())
 
 
-def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: float, sag: float, name: str, notes: list):
+def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: float, sag: float) -> tuple[SurfaceFit, str]:
     """The surface of a grown region among every curved type that holds it: the one with the most edges on it
-    (rulings), then the simplest; the report notes when several fit."""
+    (rulings), then the simplest; and the report's note when several fit ("" when one does)."""
     V, F = at.mesh.vertices, at.mesh.faces
     ids, tris = at.points(region)
     fits = _candidates(V, F, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
-        return fits[0]
+        return fits[0], ""
     rank = [(-_on_chords(f, V, F, tris, eps), i) for i, f in enumerate(fits)]
     best = fits[min(rank)[1]]
-    notes.append(f"{name}: {best.type} chosen among {', '.join(f.type for f in fits)} that all hold its "
-                 f"{len(ids)} vertices to round-off ({-min(rank)[0]} edges on it)")
-    return best
+    return best, (f"{best.type} chosen among {', '.join(f.type for f in fits)} that all hold its {len(ids)} vertices "
+                  f"to round-off ({-min(rank)[0]} edges on it)")
 
 
 def _crease_free(mesh: Mesh, cos_crease: float) -> np.ndarray:
@@ -520,9 +519,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
     curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
-    for region, fit in _weak_dropped(at, curved, notes):
+    # each region judged by its best surface, not its seed's: the simplest type first made three quads of a fillet's
+    # strip a sphere whose chords lie 15x farther than the cylinder's, and dropped them as planes (export seed 20)
+    best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
+    for region, fit in _weak_dropped(at, [(r, best[id(r)][0]) for r, _ in curved], notes):
         p = len(fits)
-        fits[p] = _best_type(at, region, fit, eps, sag, f"face {p}", notes)
+        fits[p] = fit
+        if best[id(region)][1]:
+            notes.append(f"face {p}: {best[id(region)][1]}")
         labels[np.concatenate([at.tris[a] for a in region])] = p
         taken[region] = True
     for tris, fit in free_form(at, taken, tolerance):
