@@ -320,7 +320,7 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         except InputError as err:  # a degenerate edge (all its points coincide): the B-rep reports it
             notes.append(f"network_geometry: edge {e}: {err}")
             return pts, gap, point_curve(pts), notes
-        if trusted and not closed:
+        if trusted and not closed and right != OUTSIDE:  # (midway between two surfaces: an open boundary has one)
             placed = len(pts)
             pts, curve = _within_sewing(pts, curve, int(left), int(right), project, tolerance=tolerance,
                                         max_points=max_points, fit_curve=fit_curve)
