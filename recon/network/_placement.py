@@ -1,7 +1,8 @@
 """The curve network placed on its fitted surfaces.
 
 Vertices go to the least-squares meeting point of their surfaces, edge polylines onto the intersection of their
-two surfaces (refined where a chord strays from it), and each edge is fitted (:func:`recon.fit.fit_edge_curve`).
+two surfaces (refined where a chord strays from it, or midway between them where they do not meet and the edge
+would lie beyond the sewing tolerance), and each edge is fitted (:func:`recon.fit.fit_edge_curve`).
 """
 
 from __future__ import annotations
@@ -267,8 +268,9 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         ``fit_curve(points, *, start, end, tolerance) -> EdgeCurve``; :func:`fit_edge_curve` by default.
     refine : collection of part ids, optional
         Parts whose surfaces are trusted to place an edge between the mesh's points: a polyline gets points
-        added where its chords stray from the edge (:func:`_refined`), and a smooth curve that strays from its
-        points gives way to them (:func:`_strays`), only when both its parts are in it (an open boundary: its
+        added where its chords stray from the edge (:func:`_refined`), or midway between its two surfaces where
+        its curve lies beyond the sewing tolerance (:func:`_within_sewing`), and a smooth curve that strays from
+        its points gives way to them (:func:`_strays`), only when both its parts are in it (an open boundary: its
         one part). Default: every part.
     jobs : int
         Processes to place the edges with: two at most (see :func:`recon._parallel.shared_map`). The result
@@ -320,7 +322,7 @@ def network_geometry(network: CurveNetwork, project: Projector, *, tolerance: fl
         except InputError as err:  # a degenerate edge (all its points coincide): the B-rep reports it
             notes.append(f"network_geometry: edge {e}: {err}")
             return pts, gap, point_curve(pts), notes
-        if trusted and not closed:
+        if trusted and not closed and right != OUTSIDE:  # (midway between two surfaces: an open boundary has one)
             placed = len(pts)
             pts, curve = _within_sewing(pts, curve, int(left), int(right), project, tolerance=tolerance,
                                         max_points=max_points, fit_curve=fit_curve)
