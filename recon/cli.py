@@ -8,7 +8,7 @@ progress and errors go to stderr; ``-q`` prints errors only.
 
 Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), 2 bad input,
 an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 no result:
-an internal error (a bug: one line, the traceback with ``-v``) or a B-rep recon could not build or write (a
+an internal error (a bug: one line, the traceback with ``-v``) or a B-rep ``convert`` could not build or write (a
 :class:`~recon.errors.BrepError`: "error: no result: …"), 128 + the signal when interrupted (130 SIGINT,
 143 SIGTERM), 141 without a word when the reader of stdout or stderr went away (``recon convert … | head -1``: what
 a process killed by SIGPIPE returns, as Unix tools do; the output file is complete, the summary comes after it).
@@ -117,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
             code = EXIT_OK
         except BaseException as err:  # noqa: BLE001  every error becomes one line; see _one_line
             guard.settle()  # from here a signal is only recorded: the report of this error must get out
-            code, line = _one_line(err, guard, verbose)
+            code, line = _one_line(err, guard, verbose, command)
             if verbose and guard.signum is None and not isinstance(err, BrokenPipeError):
                 log.error("traceback:", exc_info=err)
         guard.settle()
@@ -154,7 +154,7 @@ def _check_address_space(command: str) -> None:
                          "million triangles")
 
 
-def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, str]:
+def _one_line(err: BaseException, guard, verbose: bool = False, command: str = "recon") -> tuple[int, str]:
     """The exit code and the one line an error is reported with."""
     from .errors import BrepError, ReconError
 
@@ -165,7 +165,9 @@ def _one_line(err: BaseException, guard, verbose: bool = False) -> tuple[int, st
     if isinstance(err, BrokenPipeError):
         _drop_closed_streams()
         return EXIT_BROKEN_PIPE, ""  # the reader stopped reading: nothing to tell, and nowhere to tell it
-    if isinstance(err, BrepError):  # recon's own failure on a good mesh (nothing written), not the user's bad input
+    # convert's own B-rep that could not be built or written (nothing written) is recon's failure, not bad input; in
+    # compare a BrepError is about the user's shape
+    if isinstance(err, BrepError) and command == "recon convert":
         return EXIT_INTERNAL, f"error: no result: {err}"
     if isinstance(err, ReconError):
         return EXIT_BAD_INPUT, f"error: {err}"

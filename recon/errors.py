@@ -1,7 +1,8 @@
 """Errors recon raises. One root, a few children (after shapely's ``errors.py``).
 
 The CLI turns any :class:`ReconError` into one line on stderr and exit code 2 (bad input), but a
-:class:`BrepError` into exit code 3 (no result): a mesh recon could not make a B-rep of is recon's failure.
+:class:`BrepError` in ``recon convert`` into exit code 3 (no result): a mesh recon could not make a B-rep of is
+recon's failure.
 """
 
 __all__ = [

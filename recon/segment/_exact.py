@@ -471,19 +471,23 @@ def _sag_of(at: _Atoms, region: list, fit: SurfaceFit) -> float:
 
 
 def _weak_dropped(at: _Atoms, regions: list, notes: list) -> list:
-    """The curved regions without those of fewer than :data:`WEAK_ATOMS` atoms whose sag exceeds the sag of the
-    well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none): planes meeting at a small
-    angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through their corners)."""
-    sags = [_sag_of(at, r, f) for r, f in regions]
-    strong = [s for (r, _), s in zip(regions, sags) if len(r) >= WEAK_ATOMS]
+    """The curved regions ``(atoms, seed's fit, best fit)`` without those of fewer than :data:`WEAK_ATOMS` atoms whose
+    sag exceeds the sag of the well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none): planes
+    meeting at a small angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through
+    their corners). A weak region is judged by the nearer of its two surfaces; each kept one gets its best fit when that
+    passes, else its seed's."""
+    sags = [(_sag_of(at, r, f), _sag_of(at, r, b)) for r, f, b in regions]
+    strong = [s for (r, _, _), (s, _) in zip(regions, sags) if len(r) >= WEAK_ATOMS]
     limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
     kept = []
-    for (r, f), s in zip(regions, sags):
-        if len(r) < WEAK_ATOMS and s > limit:
-            notes.append(f"{len(r)} plane pieces a {f.type} holds to round-off kept as planes: its chords lie "
-                         f"{s:.3g} from it, the well-drawn curved faces' at most {limit / WEAK_SAG_MARGIN:.3g}")
-            continue
-        kept.append((r, f))
+    for (r, f, b), (s, sb) in zip(regions, sags):
+        if len(r) >= WEAK_ATOMS or sb <= limit:
+            kept.append((r, b))
+        elif s <= limit:
+            kept.append((r, f))
+        else:
+            notes.append(f"{len(r)} plane pieces a {b.type} holds to round-off kept as planes: its chords lie "
+                         f"{min(s, sb):.3g} from it, the well-drawn curved faces' at most {limit / WEAK_SAG_MARGIN:.3g}")
     return kept
 
 
@@ -519,13 +523,13 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
     curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
-    # each region judged by its best surface, not its seed's: the simplest type first made three quads of a fillet's
-    # strip a sphere whose chords lie 15x farther than the cylinder's, and dropped them as planes (export seed 20)
+    # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
+    # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
-    for region, fit in _weak_dropped(at, [(r, best[id(r)][0]) for r, _ in curved], notes):
+    for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes):
         p = len(fits)
         fits[p] = fit
-        if best[id(region)][1]:
+        if best[id(region)][1] and fit is best[id(region)][0]:
             notes.append(f"face {p}: {best[id(region)][1]}")
         labels[np.concatenate([at.tris[a] for a in region])] = p
         taken[region] = True
