@@ -154,6 +154,32 @@ def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
     return 4.0 * MAD_TO_SIGMA * float(_median(np.abs(residuals - _median(residuals))))
 
 
+def _flat_limit(tolerance: float | None, residuals: np.ndarray) -> float:
+    """How far a quadric must depart from a plane over its points to be told from one: the tolerance (a plane within
+    it is accepted as well) and 4 × the robust σ̂ of the quadric's own residuals (a curvature within its own scatter
+    is not in the points: a few points of a neighbouring face bend it)."""
+    spread = 4.0 * MAD_TO_SIGMA * float(_median(np.abs(residuals - _median(residuals))))
+    return max(float(tolerance) if tolerance is not None else 0.0, spread)
+
+
+def _sagitta(surface, points: np.ndarray) -> float:
+    """How far ``surface`` departs from a plane over ``points``: the range of its foot points' heights above their
+    least-squares plane (a cap of diameter L on a sphere of radius R: L²/(8R), measured rather than bounded)."""
+    foot, _ = surface.project(points)
+    q = foot - col_means(foot)
+    h = q @ np.linalg.eigh(q.T @ q)[1][:, 0]
+    return float(h.max() - h.min())
+
+
+def _flat(surface, points: np.ndarray, limit: float, size: float | None = None, radius: float | None = None) -> bool:
+    """Whether ``surface`` lies within ``limit`` of a plane over ``points``. With the ``points``' extent ``size`` (no
+    chord across them is longer) and the surface's least radius of curvature ``radius``, the sagitta L²/(8R) of the
+    longest chord tells first (cheap, and safe for any R); otherwise it is measured (:func:`_sagitta`)."""
+    if size is not None and radius and size * size / (8.0 * radius) < limit:  # the longest chord's sagitta
+        return True
+    return _sagitta(surface, points) < limit
+
+
 def _failed(kind: str, n: int, reason: str) -> SurfaceFit:
     log.debug("%s fit failed: %s", kind, reason)
     return SurfaceFit(kind, {}, deviation_stats(np.empty(0)), n, ok=False, reason=f"{kind}: {reason}")
@@ -263,7 +289,8 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     a = _columns(2 * q, np.ones(len(q)))
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
     c0, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
-    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > HUGE * size:
+    # a start whose sagitta over the whole patch diagonal is within tolerance is a plane (refining will not bend it)
+    if not np.isfinite(r2) or r2 <= 0 or (tolerance is not None and size**2 / (8 * np.sqrt(r2)) < tolerance):
         return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
 
     def fun(x, q):
@@ -277,8 +304,9 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
-    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
-        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
+    limit = _flat_limit(tolerance, res.fun)
+    if _flat(Sphere(center - mean, radius), q, limit, size, radius):
+        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within {limit:.3g} of a plane)")
     params = {"center": _vec(center), "radius": radius}
     return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
 
@@ -309,7 +337,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     d0 = vec[:, 0]
     e1, e2 = perpendicular_frame(d0)
     circle = _circle_2d(_columns(q @ e1, q @ e2))
-    if circle is None or circle[1] > HUGE * size:
+    if circle is None or (tolerance is not None and size**2 / (8 * circle[1]) < tolerance):
         return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
     c0 = circle[0][0] * e1 + circle[0][1] * e2
 
@@ -332,8 +360,9 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
     radius = abs(float(res.x[4]))
-    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
-        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
+    limit = _flat_limit(tolerance, res.fun)
+    if _flat(Cylinder(c - mean, d, radius), q, limit, size, radius):
+        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within {limit:.3g} of a plane)")
     params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
     return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
 
@@ -403,6 +432,9 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
         return _failed("cone", len(pts), "degenerate (apex at infinity: a cylinder)")
     if np.median((q - apex) @ d) < 0 or radius < 0:
         return _failed("cone", len(pts), "degenerate (the points straddle the apex)")
+    flat = _flat_limit(tolerance, res.fun)
+    if _flat(Cone(apex, d, alpha), q, flat):
+        return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: within {flat:.3g} of a plane)")
     residuals = cone_distance(q, apex, d, alpha)
     if tolerance is not None and not within_tolerance(deviation_stats(residuals), tolerance):
         pass  # fails on its deviation below; the likelihood-ratio test would only cost a cylinder fit
@@ -513,7 +545,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0, d0 = axis
     h, rho = _rho_z(q, c0, d0)
     circle = _circle_2d(_columns(rho, h))
-    if circle is None or circle[1] > HUGE * size:
+    if circle is None or (tolerance is not None and size**2 / (8 * circle[1]) < tolerance):
         return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
     (r_major0, z0), r_minor0 = circle
     c0 = c0 + z0 * d0
@@ -542,12 +574,15 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     # a major radius below a thousandth of the patch is no torus (scales with part size)
     if big < max(1e-3 * size, limit):
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
-    if big > HUGE * size or size**2 / (8 * big) < limit:
+    if size**2 / (8 * big) < limit:
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
-    if small <= 0 or small > HUGE * size:
+    if small <= 0:
         return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")
     if big < small:
         return _failed("torus", len(pts), f"spindle torus (major {big:.3g} < minor {small:.3g}) is not supported")
+    flat = _flat_limit(tolerance, res.fun)
+    if _flat(Torus(center - mean, d, big, small), q, flat):
+        return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g}: within {flat:.3g} of a plane)")
     params = {"center": _vec(center), "axis_dir": _vec(d), "major_radius": big, "minor_radius": small}
     return _finish("torus", params, Torus(center, d, big, small), pts, tolerance)
 
