@@ -33,7 +33,7 @@ from .._array import as_points, col_means, col_sums, columns as _columns, cross3
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import HUGE, MAD_TO_SIGMA, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
-__all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
+__all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "flat_within", "MAX_FIT_POINTS"]
 
 log = logging.getLogger(__name__)
 
@@ -180,6 +180,20 @@ def _flat(surface, points: np.ndarray, limit: float, size: float | None = None, 
     return _sagitta(surface, points) < limit
 
 
+def flat_within(fit: SurfaceFit, points, tolerance: float) -> bool:
+    """Whether the quadric ``fit`` (sphere, cylinder, cone or torus) lies within max(``tolerance``, 4 σ̂ of its own
+    residuals) of a plane over ``points`` (:func:`_flat_limit`, :func:`_flat`): then it is a plane to the points.
+
+    For a fit out of tolerance: the fitters' own test bounds the sagitta by the patch diagonal against the tolerance
+    alone, and a few points of a neighbouring face bend a quadric of 100 × the part's size to well above that while
+    the bulk of the points lies on a plane, 4 σ̂ off the quadric.
+    """
+    pts = as_points(points, error=FitError)
+    sub = pts[:: max(1, -(-len(pts) // MAX_FIT_POINTS))]
+    radius = fit.params.get("radius")
+    return _flat(fit.surface, sub, _flat_limit(tolerance, fit.distance(sub)), _extent(sub), radius)
+
+
 def _failed(kind: str, n: int, reason: str) -> SurfaceFit:
     log.debug("%s fit failed: %s", kind, reason)
     return SurfaceFit(kind, {}, deviation_stats(np.empty(0)), n, ok=False, reason=f"{kind}: {reason}")
@@ -289,8 +303,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     a = _columns(2 * q, np.ones(len(q)))
     sol, *_ = np.linalg.lstsq(a, np.einsum("ij,ij->i", q, q), rcond=None)
     c0, r2 = sol[:3], sol[3] + sol[:3] @ sol[:3]
-    # a start whose sagitta over the whole patch diagonal is within tolerance is a plane (refining will not bend it)
-    if not np.isfinite(r2) or r2 <= 0 or (tolerance is not None and size**2 / (8 * np.sqrt(r2)) < tolerance):
+    if not np.isfinite(r2) or r2 <= 0 or np.sqrt(r2) > HUGE * size:
         return _failed("sphere", len(pts), "degenerate (points are coplanar: a plane)")
 
     def fun(x, q):
@@ -304,9 +317,8 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
-    limit = _flat_limit(tolerance, res.fun)
-    if _flat(Sphere(center - mean, radius), q, limit, size, radius):
-        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within {limit:.3g} of a plane)")
+    if size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+        return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"center": _vec(center), "radius": radius}
     return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
 
@@ -337,7 +349,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     d0 = vec[:, 0]
     e1, e2 = perpendicular_frame(d0)
     circle = _circle_2d(_columns(q @ e1, q @ e2))
-    if circle is None or (tolerance is not None and size**2 / (8 * circle[1]) < tolerance):
+    if circle is None or circle[1] > HUGE * size:
         return _failed("cylinder", len(pts), "degenerate start (no curvature across the axis: a plane)")
     c0 = circle[0][0] * e1 + circle[0][1] * e2
 
@@ -360,9 +372,8 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
     radius = abs(float(res.x[4]))
-    limit = _flat_limit(tolerance, res.fun)
-    if _flat(Cylinder(c - mean, d, radius), q, limit, size, radius):
-        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within {limit:.3g} of a plane)")
+    if size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+        return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
     return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
 
@@ -432,9 +443,6 @@ def fit_cone(points, normals=None, *, tolerance: float | None = None, scale: flo
         return _failed("cone", len(pts), "degenerate (apex at infinity: a cylinder)")
     if np.median((q - apex) @ d) < 0 or radius < 0:
         return _failed("cone", len(pts), "degenerate (the points straddle the apex)")
-    flat = _flat_limit(tolerance, res.fun)
-    if _flat(Cone(apex, d, alpha), q, flat):
-        return _failed("cone", len(pts), f"degenerate (half-angle {np.rad2deg(alpha):.3g}°: within {flat:.3g} of a plane)")
     residuals = cone_distance(q, apex, d, alpha)
     if tolerance is not None and not within_tolerance(deviation_stats(residuals), tolerance):
         pass  # fails on its deviation below; the likelihood-ratio test would only cost a cylinder fit
@@ -545,7 +553,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0, d0 = axis
     h, rho = _rho_z(q, c0, d0)
     circle = _circle_2d(_columns(rho, h))
-    if circle is None or (tolerance is not None and size**2 / (8 * circle[1]) < tolerance):
+    if circle is None or circle[1] > HUGE * size:
         return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
     (r_major0, z0), r_minor0 = circle
     c0 = c0 + z0 * d0
@@ -576,13 +584,10 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
     if size**2 / (8 * big) < limit:
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
-    if small <= 0:
+    if small <= 0 or small > HUGE * size:
         return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")
     if big < small:
         return _failed("torus", len(pts), f"spindle torus (major {big:.3g} < minor {small:.3g}) is not supported")
-    flat = _flat_limit(tolerance, res.fun)
-    if _flat(Torus(center - mean, d, big, small), q, flat):
-        return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g}: within {flat:.3g} of a plane)")
     params = {"center": _vec(center), "axis_dir": _vec(d), "major_radius": big, "minor_radius": small}
     return _finish("torus", params, Torus(center, d, big, small), pts, tolerance)
 

@@ -11,7 +11,7 @@ import numpy.typing as npt
 from ..errors import FitError
 from ._bspline import fit_bspline_surface
 from ._noise import default_tolerance, estimate_normals
-from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
+from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus, flat_within
 from .._array import as_points
 from ._types import MAD_TO_SIGMA, SURFACE_TYPES, SurfaceFit
 
@@ -137,10 +137,12 @@ def fit_surface(
     if not candidates:
         raise FitError("`types` is empty and `allow_bspline` is False: nothing to fit")
     scored = [c for c in candidates if np.isfinite(c.deviation["p99"])]
-    # The analytic candidates compete on the bulk of the points (a plane holding 97 % of them to 0.1 tolerance, the
-    # rest a neighbouring face's, is a plane, not the sphere of radius 100 × the part those few bend), the
-    # B-spline, which bends to every point, on p99 against their pick.
-    analytic = [c for c in scored if c.type in ANALYTIC_FITTERS]
+    # A quadric within max(tolerance, 4 σ̂) of a plane over the points is that plane (its sagitta is not in them);
+    # the analytic candidates left compete on the bulk of the points (BIC of the robust σ̂: a plane holding 97 % of
+    # them to 0.1 tolerance, the rest a neighbouring face's, is not the sphere of radius 100 × the part those few
+    # bend), the B-spline, which bends to every point, on p99 against their pick.
+    analytic = [c for c in scored if c.type in ANALYTIC_FITTERS
+                and (c.type == "plane" or not flat_within(c, pts, tolerance))]
     pool = [c for c in scored if c.type not in ANALYTIC_FITTERS]
     if analytic:
         pool.append(min(analytic, key=lambda c: _bic(c, pts, sigma)))
