@@ -1,10 +1,8 @@
 """A quadric too flat to tell from a plane over its points is a plane; one whose curvature the points show stays.
 
-The fitters call a sphere or cylinder whose sagitta bound L²/(8R) over the patch diagonal L is under the tolerance a
-plane. When nothing fits within tolerance, :func:`recon.fit.fit_surface` also drops a quadric whose measured sagitta
-(the range of its foot points' heights above their best plane) is under max(tolerance, 4 σ̂ of its own residuals)
-(:func:`recon.fit._primitives.flat_within`), and the analytic candidates left compete on the bulk of the points (BIC
-of the robust σ̂), not on p99, which a few points of a neighbouring face set.
+The fitters call a sphere or cylinder whose sagitta L²/(8R) over the patch diagonal L is under the tolerance (4σ̂ of
+its residuals without one) degenerate: a plane. The rule alone decides (no radius cap in patch diagonals), so a
+cylinder or sphere far larger than its patch stays one wherever its sagitta is far above the noise.
 """
 
 from __future__ import annotations
@@ -12,8 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from recon.fit import fit_cylinder, fit_sphere, fit_surface
-from recon.fit._primitives import flat_within
+from recon.fit import fit_sphere, fit_surface
 
 RNG_SEED = 7
 N = 1600  # points per patch: a 40 × 40 grid
@@ -95,10 +92,13 @@ def test_a_noise_free_cylinder_of_radius_far_above_the_part_stays_a_cylinder():
     assert abs(fit.params["radius"] - 50.0) < 0.01 * 50.0
 
 
+@pytest.mark.xfail(strict=True, reason="fit_surface's fallback picks the least p99 (here a cylinder of radius ~36, "
+                   "bent by the wall); choosing the plane the bulk lies on broke casting's STEP read-back through a "
+                   "filled neighbour (bench/editability.md, 2026-12-04): not adopted")
 def test_a_plane_with_a_few_points_of_a_neighbouring_face_is_a_plane():
     # 97 % of the points on z = 0 to σ = 2e-5, 3 % on a wall rising from one edge (a neighbouring face's sliver):
-    # nothing fits within the tolerance, and the candidate the bulk lies on is the plane, whatever a sphere bent
-    # toward the wall gains on p99
+    # nothing fits within the tolerance; the plane holds the bulk to 1e-4 of the tolerance, a sphere or cylinder
+    # bent toward the wall (radius ~50 × the patch) leaves the bulk 1e-3 off (50 σ) for a p99 2 % lower
     rng = np.random.default_rng(RNG_SEED)
     sigma, tol = 2e-5, 6.5e-4
     x, y = _grid()
@@ -108,12 +108,6 @@ def test_a_plane_with_a_few_points_of_a_neighbouring_face_is_a_plane():
     pts[:wall] = np.column_stack([np.full(wall, 0.5), np.linspace(-0.5, 0.5, wall), 0.02 + 0.01 * t])
     nrm = np.tile([0.0, 0.0, 1.0], (len(pts), 1))
     nrm[:wall] = [1.0, 0.0, 0.0]
-    # the sphere and the cylinder bent toward the wall (radius ~50 × the patch) leave the bulk 1e-3 off, 50 σ: their
-    # sagitta (~4e-3) is within 4 σ̂ of their own residuals, the curvature is the wall's, not the points'
-    for fitter in (fit_sphere, fit_cylinder):
-        quadric = fitter(pts, nrm, tolerance=tol)
-        assert not quadric and quadric.params  # out of tolerance, not degenerate by the fitter's own bound
-        assert flat_within(quadric, pts, tol)
     fit = fit_surface(pts, nrm, tolerance=tol, faces=None, allow_bspline=False)
     assert not fit
     assert fit.type == "plane"

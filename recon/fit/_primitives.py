@@ -33,7 +33,7 @@ from .._array import as_points, col_means, col_sums, columns as _columns, cross3
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import HUGE, MAD_TO_SIGMA, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
-__all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "flat_within", "MAX_FIT_POINTS"]
+__all__ = ["fit_plane", "fit_sphere", "fit_cylinder", "fit_cone", "fit_torus", "MAX_FIT_POINTS"]
 
 log = logging.getLogger(__name__)
 
@@ -152,46 +152,6 @@ def _limit_tolerance(tolerance: float | None, residuals: np.ndarray) -> float:
         return float(tolerance)
     # 4 sigma of the residuals when no tolerance is given (scales with noise sigma)
     return 4.0 * MAD_TO_SIGMA * float(_median(np.abs(residuals - _median(residuals))))
-
-
-def _flat_limit(tolerance: float | None, residuals: np.ndarray) -> float:
-    """How far a quadric must depart from a plane over its points to be told from one: the tolerance (a plane within
-    it is accepted as well) and 4 × the robust σ̂ of the quadric's own residuals (a curvature within its own scatter
-    is not in the points: a few points of a neighbouring face bend it)."""
-    spread = 4.0 * MAD_TO_SIGMA * float(_median(np.abs(residuals - _median(residuals))))
-    return max(float(tolerance) if tolerance is not None else 0.0, spread)
-
-
-def _sagitta(surface, points: np.ndarray) -> float:
-    """How far ``surface`` departs from a plane over ``points``: the range of its foot points' heights above their
-    least-squares plane (a cap of diameter L on a sphere of radius R: L²/(8R), measured rather than bounded)."""
-    foot, _ = surface.project(points)
-    q = foot - col_means(foot)
-    h = q @ np.linalg.eigh(q.T @ q)[1][:, 0]
-    return float(h.max() - h.min())
-
-
-def _flat(surface, points: np.ndarray, limit: float, size: float | None = None, radius: float | None = None) -> bool:
-    """Whether ``surface`` lies within ``limit`` of a plane over ``points``. With the ``points``' extent ``size`` (no
-    chord across them is longer) and the surface's least radius of curvature ``radius``, the sagitta L²/(8R) of the
-    longest chord tells first (cheap, and safe for any R); otherwise it is measured (:func:`_sagitta`)."""
-    if size is not None and radius and size * size / (8.0 * radius) < limit:  # the longest chord's sagitta
-        return True
-    return _sagitta(surface, points) < limit
-
-
-def flat_within(fit: SurfaceFit, points, tolerance: float) -> bool:
-    """Whether the quadric ``fit`` (sphere, cylinder, cone or torus) lies within max(``tolerance``, 4 σ̂ of its own
-    residuals) of a plane over ``points`` (:func:`_flat_limit`, :func:`_flat`): then it is a plane to the points.
-
-    For a fit out of tolerance: the fitters' own test bounds the sagitta by the patch diagonal against the tolerance
-    alone, and a few points of a neighbouring face bend a quadric of 100 × the part's size to well above that while
-    the bulk of the points lies on a plane, 4 σ̂ off the quadric.
-    """
-    pts = as_points(points, error=FitError)
-    sub = pts[:: max(1, -(-len(pts) // MAX_FIT_POINTS))]
-    radius = fit.params.get("radius")
-    return _flat(fit.surface, sub, _flat_limit(tolerance, fit.distance(sub)), _extent(sub), radius)
 
 
 def _failed(kind: str, n: int, reason: str) -> SurfaceFit:

@@ -11,7 +11,7 @@ import numpy.typing as npt
 from ..errors import FitError
 from ._bspline import fit_bspline_surface
 from ._noise import default_tolerance, estimate_normals
-from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus, flat_within
+from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from .._array import as_points
 from ._types import MAD_TO_SIGMA, SURFACE_TYPES, SurfaceFit
 
@@ -137,16 +137,7 @@ def fit_surface(
     if not candidates:
         raise FitError("`types` is empty and `allow_bspline` is False: nothing to fit")
     scored = [c for c in candidates if np.isfinite(c.deviation["p99"])]
-    # A quadric within max(tolerance, 4 σ̂) of a plane over the points is that plane (its sagitta is not in them);
-    # the analytic candidates left compete on the bulk of the points (BIC of the robust σ̂: a plane holding 97 % of
-    # them to 0.1 tolerance, the rest a neighbouring face's, is not the sphere of radius 100 × the part those few
-    # bend), the B-spline, which bends to every point, on p99 against their pick.
-    analytic = [c for c in scored if c.type in ANALYTIC_FITTERS
-                and (c.type == "plane" or not flat_within(c, pts, tolerance))]
-    pool = [c for c in scored if c.type not in ANALYTIC_FITTERS]
-    if analytic:
-        pool.append(min(analytic, key=lambda c: _bic(c, pts, sigma)))
-    best = min(pool, key=lambda c: c.deviation["p99"]) if pool else candidates[0]
+    best = min(scored, key=lambda c: c.deviation["p99"]) if scored else candidates[0]
     reason = "; ".join(c.reason for c in candidates)
     log.info("fit_surface: nothing within tolerance %.3g: %s", tolerance, reason)
     return SurfaceFit(best.type, best.params, best.deviation, best.n_points, ok=False, reason=reason)
@@ -155,15 +146,6 @@ def fit_surface(
 def residual_scale(fit: SurfaceFit, pts: np.ndarray) -> float:
     """Robust σ of the residuals: MAD-based, so a sliver of a neighbouring face among the points does not count."""
     return MAD_TO_SIGMA * float(np.median(np.abs(fit.distance(pts))))
-
-
-def _bic(fit: SurfaceFit, pts: np.ndarray, sigma: float | None, scale: float | None = None) -> float:
-    """BIC (Schwarz 1978) of ``fit`` for Gaussian residuals of its robust scale σ̂ (:func:`residual_scale`, or
-    ``scale``) with its type's parameter count: n ln σ̂² + k ln n, σ̂ floored at the noise ``sigma`` (a smaller
-    residual is no evidence; without one, at the smallest float: σ̂ = 0 only on exact points)."""
-    n = len(pts)
-    s = residual_scale(fit, pts) if scale is None else scale
-    return float(n * np.log(max(s, sigma or 0.0, np.finfo(float).tiny) ** 2) + N_PARAMS[fit.type] * np.log(n))
 
 
 def _later_fits(first: SurfaceFit, pts, normals, *, tolerance: float, types, made: dict | None = None):
@@ -188,12 +170,18 @@ def _least_complex(first: SurfaceFit, pts, normals, *, tolerance: float, sigma: 
     (Schwarz 1978) for Gaussian residuals of scale σ̂ with k parameters: n ln σ̂² + k ln n, σ̂ floored at the
     noise (a smaller residual is no evidence).
     """
+    floor = float(sigma)
+    n = len(pts)
     scale = residual_scale(first, pts)
-    if scale <= MISFIT_SCALE * sigma:
+    if scale <= MISFIT_SCALE * floor:
         return first
-    best, best_bic = first, _bic(first, pts, sigma, scale)
+
+    def bic(fit, s):
+        return n * np.log(max(s, floor) ** 2) + N_PARAMS[fit.type] * np.log(n)
+
+    best, best_bic = first, bic(first, scale)
     for fit in _later_fits(first, pts, normals, tolerance=tolerance, types=types):
-        b = _bic(fit, pts, sigma)
+        b = bic(fit, residual_scale(fit, pts))
         if b < best_bic:
             best, best_bic = fit, b
     if best is not first:
