@@ -277,7 +277,7 @@ def fit_sphere(points, normals=None, *, tolerance: float | None = None, scale: f
     x0 = np.r_[c0, np.sqrt(r2)]
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     center, radius = res.x[:3] + mean, abs(float(res.x[3]))
-    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+    if size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("sphere", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"center": _vec(center), "radius": radius}
     return _finish("sphere", params, Sphere(center, radius), pts, tolerance)
@@ -332,7 +332,7 @@ def fit_cylinder(points, normals=None, *, tolerance: float | None = None, scale:
     c = c0 + res.x[2] * e1 + res.x[3] * e2
     c = c - (c @ d) * d + mean  # foot of the centroid on the axis
     radius = abs(float(res.x[4]))
-    if radius > HUGE * size or size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
+    if size**2 / (8 * radius) < _limit_tolerance(tolerance, res.fun):
         return _failed("cylinder", len(pts), f"degenerate (radius {radius:.3g}: within tolerance of a plane)")
     params = {"axis_point": _vec(c), "axis_dir": _vec(d), "radius": radius}
     return _finish("cylinder", params, Cylinder(c, d, radius), pts, tolerance)
@@ -542,7 +542,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     # a major radius below a thousandth of the patch is no torus (scales with part size)
     if big < max(1e-3 * size, limit):
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≈ 0: a sphere)")
-    if big > HUGE * size or size**2 / (8 * big) < limit:
+    if size**2 / (8 * big) < limit:
         return _failed("torus", len(pts), f"degenerate (major radius {big:.3g} ≫ patch: a cylinder)")
     if small <= 0 or small > HUGE * size:
         return _failed("torus", len(pts), f"degenerate (minor radius {small:.3g})")
