@@ -383,7 +383,7 @@ def _within_sewing(pts, curve: EdgeCurve, left: int, right: int, project: Projec
     edge (crank's tongue, bench/brep.md). Such an edge gets points midway between its surfaces
     (:func:`_split_midway`), each within the sewing tolerance of both; through them the fitted curve, or the
     polyline where that strays from them by more than the sewing tolerance; kept when it is nearer its surfaces and
-    points (the larger distance) than the old one.
+    points (the larger distance) than the old one. An edge of one mesh segment (a line) is left as it is.
     """
     sewing = STRAY_FACTOR * tolerance
 
@@ -392,7 +392,9 @@ def _within_sewing(pts, curve: EdgeCurve, left: int, right: int, project: Projec
         return max(float(np.max(_off_surfaces(x, left, right, project))), _from_points(x, p))
 
     before = worst(curve, pts)
-    if before <= sewing:
+    # (A single mesh segment is left as it is: a line has nothing to bow through, and points midway on crank's five
+    # fillet-tangent chords, 12 T inside their tori, left the plane faces valid but not once read back from STEP.)
+    if before <= sewing or len(pts) == 2:
         return pts, curve
     more = _split_midway(pts, left, right, project, tolerance=tolerance, reach=sewing, max_points=max_points)
     if len(more) == len(pts):
