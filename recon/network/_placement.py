@@ -392,8 +392,8 @@ def _within_sewing(pts, curve: EdgeCurve, left: int, right: int, project: Projec
         return max(float(np.max(_off_surfaces(x, left, right, project))), _from_points(x, p))
 
     before = worst(curve, pts)
-    # (A single mesh segment is left as it is: a line has nothing to bow through, and points midway on crank's five
-    # fillet-tangent chords, 12 T inside their tori, left the plane faces valid but not once read back from STEP.)
+    # (One mesh segment stays as it is: a line has nothing to bow through, and midway points on fillet-tangent chords
+    # 12 T inside their tori left the plane faces valid but not once read back from STEP: bench/brep.md.)
     if before <= sewing or len(pts) == 2:
         return pts, curve
     more = _split_midway(pts, left, right, project, tolerance=tolerance, reach=sewing, max_points=max_points)
