@@ -102,7 +102,7 @@ def wire_joins(checked: list) -> str:
     it adds the first edge left that shares a vertex with the wire's two ends (``TopExp::Vertices``), else one with
     a vertex within both tolerances of an end, through ``BRepLib_MakeWire``, which joins a new edge's end to any
     vertex of the wire so far within either one's tolerance. Vertex tolerances that neighbours' repairs grew past
-    the distance to another vertex of the loop (crank's linear_138: 16 T against 10.5 T) make such a join; the wire
+    the distance to another vertex of the loop (bench/brep.md, 2026-12-04) make such a join; the wire
     then has no two ends (null vertices) and MakeFilling raises "BRep_Tool:: TopoDS_Vertex hasn't gp_Pnt". The same
     steps are taken here on copies of the edges (the joins change vertices in place) and the loop refused there.
     """
