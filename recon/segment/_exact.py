@@ -23,6 +23,7 @@ from ..fit import SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_p
 from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_freeform import impossible_types
+from ._exact_merge import merge_curved
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
            "roundoff"]
@@ -395,6 +396,11 @@ def reclaim(at: _Atoms, regions: list, eps: float, sag: float) -> list[tuple[lis
     return [(m, regions[i][1]) for i, m in enumerate(members) if len(m) >= 2]
 
 
+#: Rounds of joining curved regions and reclaiming: each round's joined faces take back the plane atoms between bands,
+#: which makes the next bands neighbours; two rounds cover a plane strip between every other band.
+MERGE_ROUNDS = 3
+
+
 def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> int:
     """How many of the triangles' edge midpoints lie on ``fit`` to round-off: a straight edge on the surface (a
     cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not."""
@@ -523,6 +529,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
     curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
+    # bands of one torus (two latitude circles lie on a cone, a cylinder or a sphere) joined when one surface holds
+    # them; the joined face then reclaims the 2-triangle planes between its bands, which may join more (seed 35)
+    for _ in range(MERGE_ROUNDS):
+        merged = merge_curved(at, curved, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None),
+                              lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag))
+        if len(merged) == len(curved):
+            break
+        curved = reclaim(at, merged, eps, sag)
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
