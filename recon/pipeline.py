@@ -22,6 +22,7 @@ from .errors import InputError, ReconError
 from ._progress import Count
 from ._tolerance import tolerance_for
 from .mesh import Mesh, clean_mesh, load_mesh
+from ._working import working_copy
 from .segment import as_decomposition, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
 
 if TYPE_CHECKING:  # (build123d loads on first use of a result's shape; see Conversion.shape)
@@ -145,7 +146,13 @@ def convert(
     t = time.perf_counter()
     step("decompose", 0.0)
     found = _exact(mesh, tolerance) if scale is None else None
-    dec = decompose(mesh, scale=scale, jobs=jobs) if found is None else None
+    # a dense noisy scan is decomposed, fitted and built on a copy at the scale its noise allows (recon._working)
+    t_work = time.perf_counter()
+    work = working_copy(mesh, tolerance) if found is None and scale is None else None
+    times["working_copy"] = time.perf_counter() - t_work
+    full, mesh = mesh, (mesh if work is None else work.mesh)
+    dec = None if found is not None else decompose(mesh, scale=scale, jobs=jobs) if work is None else \
+        decompose(mesh, scale=work.scale, tolerance=work.tolerance, jobs=jobs)
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
@@ -177,6 +184,8 @@ def convert(
                            progress=items("brep"), mesh_points=mesh.vertices)
     names = _face_names(brep)  # (an O(faces²) match: once, for the deviation and the report)
     times["brep"] = time.perf_counter() - t
+    if work is not None:  # measured and judged against the input's triangles, labelled through the copy
+        mesh, labels = full, work.input_labels(labels)
     step("brep", 1.0)
 
     dev, dev_error = None, None
@@ -196,9 +205,11 @@ def convert(
         step("deviation", 1.0)
 
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
+    if work is not None:
+        report["working_copy"] = work.to_json()
     if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
         report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
-    return Conversion(report, mesh, dec, labels, fits, brep)
+    return Conversion(report, mesh, dec, labels, fits, brep, extra={} if work is None else {"working_copy": work})
 
 
 def _as_mesh(mesh) -> Mesh:
