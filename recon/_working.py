@@ -18,6 +18,7 @@ Imports the mesh and features stages only; :func:`recon.convert` calls :func:`wo
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,6 +63,8 @@ class WorkingCopy:
         the copy was checked against.
     deviation_p99 : float
         99th percentile of the input vertices' distances to the copy (≤ ``tolerance``).
+    seconds : float
+        What estimating the noise, decimating and checking took.
     """
 
     mesh: Mesh
@@ -71,6 +74,7 @@ class WorkingCopy:
     edge: float
     tolerance: float
     deviation_p99: float
+    seconds: float = 0.0
 
     @property
     def scale(self) -> float:
@@ -85,7 +89,8 @@ class WorkingCopy:
     def to_json(self) -> dict:
         return {"triangles": int(len(self.mesh.faces)), "sigma": float(self.sigma), "input_mean_edge": float(self.h),
                 "edge": float(self.edge), "mean_edge": float(self.mesh.mean_edge_length),
-                "tolerance": float(self.tolerance), "deviation_p99": float(self.deviation_p99)}
+                "tolerance": float(self.tolerance), "deviation_p99": float(self.deviation_p99),
+                "seconds": round(float(self.seconds), 4)}
 
 
 def noise_and_edge(mesh: Mesh) -> tuple[float, float]:
@@ -114,6 +119,7 @@ def working_copy(mesh: Mesh, tolerance: float | None = None) -> WorkingCopy | No
     tolerance : float, optional
         The user's tolerance; default ``tolerance_for(σ̂, diagonal, floor=MESH_FLOOR)``, the decomposition's rule.
     """
+    t = time.perf_counter()
     if len(mesh.faces) < 2 * MIN_TRIANGLES or mesh.report.components != 1:
         return None  # a copy would be at its floor already; several bodies: the label transfer could cross them
     sigma, h = noise_and_edge(mesh)
@@ -132,7 +138,8 @@ def working_copy(mesh: Mesh, tolerance: float | None = None) -> WorkingCopy | No
             log.info("working copy: %d → %d triangles (σ̂ %.4g, h %.4g, edge %.4g), input→copy p99 %.4g (tol %.4g)",
                      len(mesh.faces), len(copy.faces), sigma, h, edge, p99, tol)
             if p99 <= tol:
-                return WorkingCopy(copy, _nearest_faces(mesh, copy), sigma, h, edge, tol, p99)
+                return WorkingCopy(copy, _nearest_faces(mesh, copy), sigma, h, edge, tol, p99,
+                                   time.perf_counter() - t)
         target *= 2
     log.info("working copy: not used (no copy of under half the triangles within the tolerance %.4g)", tol)
     return None

@@ -145,14 +145,8 @@ def convert(
         raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")
     t = time.perf_counter()
     step("decompose", 0.0)
-    found = _exact(mesh, tolerance) if scale is None else None
-    # a dense noisy scan is decomposed, fitted and built on a copy at the scale its noise allows (recon._working)
-    t_work = time.perf_counter()
-    work = working_copy(mesh, tolerance) if found is None and scale is None else None
-    times["working_copy"] = time.perf_counter() - t_work
-    full, mesh = mesh, (mesh if work is None else work.mesh)
-    dec = None if found is not None else decompose(mesh, scale=scale, jobs=jobs) if work is None else \
-        decompose(mesh, scale=work.scale, tolerance=work.tolerance, jobs=jobs)
+    found, work, dec = _decomposed(mesh, tolerance, scale, jobs)
+    full, mesh = mesh, (mesh if work is None else work.mesh)  # the stages up to the B-rep work on the copy
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
@@ -205,8 +199,7 @@ def convert(
         step("deviation", 1.0)
 
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
-    if work is not None:
-        report["working_copy"] = work.to_json()
+    report.update({} if work is None else {"working_copy": work.to_json()})  # what the stages up to the B-rep saw
     if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
         report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
     return Conversion(report, mesh, dec, labels, fits, brep, extra={} if work is None else {"working_copy": work})
@@ -238,6 +231,19 @@ def _exact(mesh: Mesh, tolerance: float | None):
         return None
     with _one_blas_thread():
         return exact_faces(mesh, tolerance or tolerance_for(0.0, mesh.diagonal), plane_atoms(mesh, eps))
+
+
+def _decomposed(mesh: Mesh, tolerance: float | None, scale: float | None, jobs: int | None):
+    """The decompose stage: ``(found, work, dec)``, the exact-vertex faces (:func:`_exact`) or else the decomposition
+    of ``mesh``, or of its working copy ``work`` when a dense noisy scan has one (:func:`recon._working.working_copy`:
+    its feature window and tolerance are the input's noise's)."""
+    found = _exact(mesh, tolerance) if scale is None else None
+    if found is not None:
+        return found, None, None
+    work = working_copy(mesh, tolerance) if scale is None else None
+    if work is None:
+        return None, None, decompose(mesh, scale=scale, jobs=jobs)
+    return None, work, decompose(work.mesh, scale=work.scale, tolerance=work.tolerance, jobs=jobs)
 
 
 def _one_blas_thread():
