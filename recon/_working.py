@@ -19,11 +19,10 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
-from threadpoolctl import threadpool_limits
 
 from ._array import row_norms
 from ._tolerance import MESH_FLOOR, tolerance_for
@@ -86,22 +85,6 @@ class WorkingCopy:
     def input_labels(self, labels: np.ndarray) -> np.ndarray:
         """(m_input,) int: the label of the copy's triangle nearest each input triangle."""
         return np.asarray(labels)[self.of_input]
-
-    def on_input(self, full: Mesh, dec, labels: np.ndarray, tolerance: float):
-        """The copy's faces carried to the input ``full`` and refined there: ``(dec, labels, fits)`` of the input.
-
-        Every surface is refitted on all the input points of its face, and the fit stage's passes
-        (:func:`recon.segment.refine`) place the faces' boundaries at the input's resolution and dissolve what the copy
-        made of them that the input's points do not need (a crease the decimation bevelled into a strip)."""
-        from .segment import SegmentContext, fit_parts, refine
-
-        with threadpool_limits(limits=1, user_api="blas"):  # as the fit stage (recon.pipeline._one_blas_thread)
-            ctx = SegmentContext.of(full, tolerance, sigma=self.sigma)
-            lab = self.input_labels(labels)
-            lab, fits = refine(lab, fit_parts(lab, ctx), ctx)
-        carried = replace(dec, labels=np.asarray(dec.labels)[self.of_input],
-                          critical=np.asarray(dec.critical)[self.of_input])
-        return carried, lab, fits
 
     def to_json(self) -> dict:
         return {"triangles": int(len(self.mesh.faces)), "sigma": float(self.sigma), "input_mean_edge": float(self.h),

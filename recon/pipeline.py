@@ -164,8 +164,6 @@ def convert(
     else:
         assert dec is not None  # decomposed above: the exact path found nothing
         labels, fits = _faces_and_fits(mesh, dec, tolerance, items("fit"))
-        if work is not None:  # every face refitted on all the input's points, the B-rep built on its triangles
-            mesh, (dec, labels, fits) = full, work.on_input(full, dec, labels, tolerance)
     times["fit"] = time.perf_counter() - t
     step("fit", 1.0)
 
@@ -180,6 +178,8 @@ def convert(
                            progress=items("brep"), mesh_points=mesh.vertices)
     names = _face_names(brep)  # (an O(faces²) match: once, for the deviation and the report)
     times["brep"] = time.perf_counter() - t
+    if work is not None:  # measured and judged against the input's triangles, labelled through the copy
+        mesh, labels = full, work.input_labels(labels)
     step("brep", 1.0)
 
     dev, dev_error = None, None
