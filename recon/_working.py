@@ -6,7 +6,8 @@ The decomposition smooths the normals in a geodesic window of ``max(EDGE_FACTOR 
 apart from the noise, so triangles of ``(NOISE_FACTOR / EDGE_FACTOR) · σ`` keep that window as it is while the
 decomposition, the fits and the B-rep work on ``(h_w / h)²`` times fewer triangles. Quadric-error decimation
 (``fast_simplification``, what ``trimesh.simplify_quadric_decimation`` calls) keeps the copy dense where the surface
-bends and places its vertices at the least-squares position of the planes they replace, averaging the noise out.
+bends. It does not average the noise out (the copy's vertices lie as far from the true surface as the input's: a
+noisy box, bench/scan.md); what the copy changes is the noise relative to a triangle.
 
 The copy must itself be a surface the acceptance rule would accept for the input: the 99th percentile of the
 input vertices' distances to it at most the tolerance (:data:`recon._tolerance.SIGMAS_PER_TOLERANCE` σ by default,
