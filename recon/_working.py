@@ -7,7 +7,9 @@ apart from the noise, so triangles of ``(NOISE_FACTOR / EDGE_FACTOR) · σ`` kee
 decomposition, the fits and the B-rep work on ``(h_w / h)²`` times fewer triangles. Quadric-error decimation
 (``fast_simplification``, what ``trimesh.simplify_quadric_decimation`` calls) keeps the copy dense where the surface
 bends. It does not average the noise out (the copy's vertices lie as far from the true surface as the input's: a
-noisy box, bench/scan.md); what the copy changes is the noise relative to a triangle.
+noisy box, bench/scan.md); what the copy changes is the noise relative to a triangle. The copy is decomposed as any
+mesh: its own noise estimate (1.0–1.25× the input's: the decimation's error adds to the noise) sets its window and the
+tolerance of its fits, which are fits to its points (the input's σ̂ there made 2–3× the faces on scan20, bench/scan.md).
 
 The copy must itself be a surface the acceptance rule would accept for the input: the 99th percentile of the
 input vertices' distances to it at most the tolerance (:data:`recon._tolerance.SIGMAS_PER_TOLERANCE` σ by default,
@@ -76,12 +78,6 @@ class WorkingCopy:
     tolerance: float
     deviation_p99: float
     seconds: float = 0.0
-
-    @property
-    def scale(self) -> float:
-        """The feature window on the copy: the input's ``NOISE_FACTOR · σ̂`` (the copy's own noise estimate reads the
-        decimation's averaging, not the scan's noise), or ``EDGE_FACTOR`` of the copy's edges where they are wider."""
-        return max(NOISE_FACTOR * self.sigma, EDGE_FACTOR * float(self.mesh.mean_edge_length))
 
     def input_labels(self, labels: np.ndarray) -> np.ndarray:
         """(m_input,) int: the label of the copy's triangle nearest each input triangle."""

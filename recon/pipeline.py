@@ -235,15 +235,15 @@ def _exact(mesh: Mesh, tolerance: float | None):
 
 def _decomposed(mesh: Mesh, tolerance: float | None, scale: float | None, jobs: int | None):
     """The decompose stage: ``(found, work, dec)``, the exact-vertex faces (:func:`_exact`) or else the decomposition
-    of ``mesh``, or of its working copy ``work`` when a dense noisy scan has one (:func:`recon._working.working_copy`:
-    its feature window and tolerance are the input's noise's)."""
+    of ``mesh``, or of its working copy ``work`` when a dense noisy scan has one (:func:`recon._working.working_copy`;
+    the copy's own noise sets its window and tolerance: its points are what is fitted, bench/scan.md)."""
     found = _exact(mesh, tolerance) if scale is None else None
     if found is not None:
         return found, None, None
     work = working_copy(mesh, tolerance) if scale is None else None
     if work is None:
         return None, None, decompose(mesh, scale=scale, jobs=jobs)
-    return None, work, decompose(work.mesh, scale=work.scale, tolerance=work.tolerance, jobs=jobs)
+    return None, work, decompose(work.mesh, jobs=jobs)
 
 
 def _one_blas_thread():

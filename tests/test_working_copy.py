@@ -110,7 +110,7 @@ def test_convert_a_noisy_box(noisy_box):
 
 @pytest.mark.slow
 @pytest.mark.xfail(strict=True, reason="the copy bevels 2–3 creases of the noisy box into strips of 0.5–2.6 % of a "
-                   "side's area that the fit stage keeps as cylinder/torus faces (9 faces for 6; without the copy: 6); "
+                   "side's area that the fit stage keeps as cylinder/torus faces (8 faces for 6; without the copy: 6); "
                    "bench/scan.md")
 def test_convert_a_noisy_box_face_count(noisy_box):
     import recon
