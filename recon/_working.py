@@ -8,7 +8,7 @@ decomposition, the fits and the B-rep work on ``(h_w / h)²`` times fewer triang
 (``fast_simplification``, what ``trimesh.simplify_quadric_decimation`` calls) keeps the copy dense where the surface
 bends. It does not average the noise out (the copy's vertices lie as far from the true surface as the input's: a
 noisy box, bench/scan.md); what the copy changes is the noise relative to a triangle. The copy is decomposed as any
-mesh: its own noise estimate (1.0–1.25× the input's: the decimation's error adds to the noise) sets its window and the
+mesh: its own noise estimate (1.2–1.6× the true σ on the corpus's scans: the decimation's error adds to the noise) sets its window and the
 tolerance of its fits, which are fits to its points (the input's σ̂ there made 2–3× the faces on scan20, bench/scan.md).
 
 The copy must itself be a surface the acceptance rule would accept for the input: the 99th percentile of the
