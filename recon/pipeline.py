@@ -22,6 +22,7 @@ from .errors import InputError, ReconError
 from ._progress import Count
 from ._tolerance import tolerance_for
 from .mesh import Mesh, SpikeReport, clean_mesh, load_mesh, move_spikes
+from ._working import working_copy
 from .segment import as_decomposition, coplanar_pairs, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
 
 if TYPE_CHECKING:  # (build123d loads on first use of a result's shape; see Conversion.shape)
@@ -144,8 +145,8 @@ def convert(
         raise InputError(f"convert: `tolerance` must be > 0, got {tolerance!r}")
     t = time.perf_counter()
     step("decompose", 0.0)
-    found = _exact(mesh, tolerance) if scale is None else None
-    dec = decompose(mesh, scale=scale, jobs=jobs) if found is None else None
+    found, work, dec = _decomposed(mesh, tolerance, scale, jobs)
+    full, mesh = mesh, (mesh if work is None else work.mesh)  # the stages up to the B-rep work on the copy
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
@@ -177,6 +178,8 @@ def convert(
                            progress=items("brep"), mesh_points=mesh.vertices)
     names = _face_names(brep)  # (an O(faces²) match: once, for the deviation and the report)
     times["brep"] = time.perf_counter() - t
+    if work is not None:  # measured and judged against the input's triangles, labelled through the copy
+        mesh, labels = full, work.input_labels(labels)
     step("brep", 1.0)
 
     dev, dev_error = None, None
@@ -196,6 +199,7 @@ def convert(
         step("deviation", 1.0)
 
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
+    report.update({} if work is None else {"working_copy": work.to_json()})  # what the stages up to the B-rep saw
     if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
         report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
     if len(spikes.vertices):
@@ -204,7 +208,7 @@ def convert(
             f"{len(spikes.vertices)} vertices stood off the surface as spikes (up to "
             f"{report['mesh']['spikes']['max_moved_pct']:.2g} % of the diagonal) and were moved onto their "
             "neighbours' surface; the deviation is measured to where they were moved")
-    return Conversion(report, mesh, dec, labels, fits, brep)
+    return Conversion(report, mesh, dec, labels, fits, brep, extra={} if work is None else {"working_copy": work})
 
 
 def _as_mesh(mesh) -> Mesh:
@@ -247,6 +251,19 @@ def _exact(mesh: Mesh, tolerance: float | None):
         return None
     with _one_blas_thread():
         return exact_faces(mesh, tolerance or tolerance_for(0.0, mesh.diagonal), plane_atoms(mesh, eps))
+
+
+def _decomposed(mesh: Mesh, tolerance: float | None, scale: float | None, jobs: int | None):
+    """The decompose stage: ``(found, work, dec)``, the exact-vertex faces (:func:`_exact`) or else the decomposition
+    of ``mesh``, or of its working copy ``work`` when a dense noisy scan has one (:func:`recon._working.working_copy`;
+    the copy's own noise sets its window and tolerance: its points are what is fitted, bench/scan.md)."""
+    found = _exact(mesh, tolerance) if scale is None else None
+    if found is not None:
+        return found, None, None
+    work = working_copy(mesh, tolerance) if scale is None else None
+    if work is None:
+        return None, None, decompose(mesh, scale=scale, jobs=jobs)
+    return None, work, decompose(work.mesh, jobs=jobs)
 
 
 def _one_blas_thread():
