@@ -832,3 +832,23 @@ def test_filling_surface_keeps_its_control_net_near_the_face():
     BRepBndLib.AddOptimal_s(face, box, False, False)
     x0, y0, z0, x1, y1, z1 = box.Get()
     assert np.linalg.norm(poles.max(0) - poles.min(0)) <= 3 * math.dist((x0, y0, z0), (x1, y1, z1))
+
+
+def test_a_solid_occ_cannot_orient_is_left_a_shell(monkeypatch):
+    """OrientClosedSolid throws on degenerate faces (export seed 13: gp_Vec2d::Normalize): a shell and a warning, not
+    an internal error that loses the whole result."""
+    from build123d import Box
+    from OCP.TopAbs import TopAbs_SHELL
+
+    import recon.brep._shell as shell_mod
+
+    class _Throws:
+        @staticmethod
+        def OrientClosedSolid_s(solid):
+            raise RuntimeError("gp_Vec2d::Normalize() - vector has zero norm")
+
+    monkeypatch.setattr(shell_mod, "BRepLib", _Throws)
+    warnings: list[str] = []
+    shape = shell_mod.assemble([f.wrapped for f in Box(1, 2, 3).faces()], 1e-4, False, warnings)
+    assert shape.ShapeType() == TopAbs_SHELL
+    assert any("OrientClosedSolid failed" in w for w in warnings)

@@ -100,7 +100,13 @@ def assemble(faces, tolerance, open_mesh, warnings):
             solids.append(sh)
             continue
         solid = TopoDS.Solid_s(fixed_solid)
-        if not BRepLib.OrientClosedSolid_s(solid):
+        try:
+            oriented = BRepLib.OrientClosedSolid_s(solid)
+        except Exception as err:  # noqa: BLE001  (OCC raises Standard_Failure subclasses on degenerate faces)
+            warnings.append(f"BRepLib.OrientClosedSolid failed ({type(err).__name__}): a closed shell is left as a shell")
+            solids.append(sh)
+            continue
+        if not oriented:
             warnings.append("BRepLib.OrientClosedSolid could not orient the solid")
         solids.append(solid)
     if len(solids) == 1:
