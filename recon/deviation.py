@@ -20,6 +20,7 @@ from collections.abc import Callable, Sequence
 import logging
 import os
 import dataclasses
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -375,10 +376,12 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
         q = p[i]
         for members, r, tree in groups:
             lists = tree.query_ball_point(q, best[i] + r + slack)
-            rows = np.repeat(np.arange(len(i)), [len(x) for x in lists])
+            lengths = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+            rows = np.repeat(np.arange(len(i)), lengths)
             if not len(rows):
                 continue
-            cols = members[np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])]
+            # (flattened in one pass: an array per point cost more than the distances on a CAD export's samples)
+            cols = members[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=len(rows))]
             near = np.linalg.norm(q[rows] - centre[cols], axis=1) - radius[cols] <= best[i][rows] + slack
             rows, cols = rows[near], cols[near]
             sub = best[i]
