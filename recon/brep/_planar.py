@@ -158,4 +158,7 @@ def lift_planar_edges(shape, tolerance: float) -> list[float]:
                      offset)
             continue
         moved.append(offset)
+    if moved:
+        log.info("lift_planar_edges: %d edges moved onto their plane's p-curve (up to %.3g beside it)", len(moved),
+                 max(moved))
     return moved
