@@ -1,0 +1,378 @@
+"""Holes: small missing patches of a scan (occlusion), found from the mesh's boundary loops and closed over.
+
+A boundary loop is a hole to close when its fill is small against the surface (:data:`HOLE_AREA_SHARE` of the
+mesh's area) and either the surface goes on around it on all sides (the triangle outside each of its edges reaches
+outward in the loop's own plane, :data:`SURROUND_REACH`, as round a cut in a surface) or it is small against the part
+(:data:`SMALL_EXTENT`: a hole wrapped round an edge or a shaft). The rim of a scan that never saw a side (a box
+without its top) turns away from the plane of its loop and is as large as the part: it stays open (a shell is the
+right answer there).
+
+A hole is filled with triangles of the loop's own edge length: a lattice of that spacing inside the loop projected on
+its plane (smoothed until it does not cross itself), triangulated with the loop (Delaunay), placed as the membrane
+the rim spans and, where the surroundings are a height field over the plane, lifted onto a quadric fitted to the
+rings of vertices around the loop, the rim's misfit carried inward harmonically so the patch meets the rim exactly. New vertices and triangles
+come after the mesh's own (its arrays are a prefix of the result's), so the input's triangles keep their indices.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix, csr_matrix
+from scipy.sparse.linalg import spsolve
+
+from ._types import Mesh
+
+__all__ = ["HoleReport", "boundary_loops", "close_holes"]
+
+log = logging.getLogger(__name__)
+
+#: Largest fill closed, as a share of the mesh's area: an occluded scan misses patches of 1-3 % of the area (issue 23),
+#: a side the scanner never saw (the face a part stood on) is a face of its own, a sixth of a cube's area.
+HOLE_AREA_SHARE = 0.05
+
+#: Least median outward reach of the triangles outside a loop's edges, in the loop's plane, per edge length: an
+#: equilateral ring in the plane reaches 0.87, one tilted 45° across a crease 0.61; a wall below a missing top turns
+#: from the plane by ~90° and reaches ~0 (a quarter: a ring turned by more than ~73° is not around a hole).
+SURROUND_REACH = 0.25
+
+#: Largest extent, per the part's diagonal, of a loop closed although its rim turns away from its plane (a hole
+#: wrapped round an edge, a rib or a shaft turns away like a side never scanned): an occluded patch of 1-3 % of a
+#: cube's area spans 0.1-0.2 of its diagonal, the open top of a box 0.8.
+SMALL_EXTENT = 0.25
+
+#: Rings of vertices around a loop that the quadric is fitted to: three edge lengths out hold ~3 times the loop's
+#: vertices, enough to pin six coefficients against noise, and stay on the faces next to the hole.
+FIT_RINGS = 3
+
+#: Smoothing steps (each a quarter of the way to the neighbours' mean) a folded projection of a rim may take to unfold:
+#: noise folds it over a few edges, which a few steps undo; a rim still folded after them is wrapped round the part.
+PARAMETER_SMOOTHING = 30
+
+#: Share of the triangles around a loop that face the loop's side of its plane for the patch to continue their
+#: quadric: noise of the order of the edge length flips a few; a ring wrapped round an edge or shaft flips many.
+HEIGHT_FIELD_SHARE = 0.95
+
+#: Lattice points kept this many edge lengths inside the loop: the Delaunay circle on a rim edge (its diameter) then
+#: holds no lattice point, so the triangulation keeps every rim edge.
+RIM_CLEARANCE = 0.6
+
+
+@dataclass(frozen=True)
+class HoleReport:
+    """What :func:`close_holes` found and closed.
+
+    Attributes
+    ----------
+    loops : int
+        Boundary loops of the mesh.
+    closed : int
+        Those closed over.
+    added : (m',) bool
+        Per triangle of the closed mesh: True where it was added (they come after the input's triangles).
+    input_vertices : int
+        Vertices of the input mesh (the closed mesh's first ones; the rest were added).
+    area_added : float
+        Area of the added triangles.
+    """
+
+    loops: int
+    closed: int
+    added: np.ndarray
+    input_vertices: int
+    area_added: float
+
+    def to_json(self, area: float) -> dict:
+        """Counts and the added area, also as a percentage of ``area`` (the input's)."""
+        return {"loops": int(self.loops), "closed": int(self.closed), "left_open": int(self.loops - self.closed),
+                "triangles_added": int(self.added.sum()), "area_added": float(self.area_added),
+                "area_added_pct": 100.0 * float(self.area_added) / area if area > 0 else 0.0}
+
+
+def boundary_loops(mesh: Mesh) -> list[np.ndarray]:
+    """The mesh's boundary loops, each as vertex indices in the order of its triangles' edges (a loop through a vertex
+    twice is split there into simple ones); in order of their least vertex."""
+    F = mesh.faces
+    once = mesh.edge_face_count[mesh.face_edges] == 1  # (m, 3): edge i of a triangle is on the boundary
+    if not once.any():
+        return []
+    tail = F[once]
+    head = np.roll(F, -1, axis=1)[once]
+    out: dict[int, list[int]] = {}
+    for a, b in sorted(zip(tail.tolist(), head.tolist())):
+        out.setdefault(a, []).append(b)
+    loops = []
+    for start in sorted(out):
+        while out[start]:
+            walk = [start]
+            while True:
+                nxt = out[walk[-1]].pop(0) if out.get(walk[-1]) else None
+                if nxt is None or nxt == start:
+                    break
+                walk.append(nxt)
+            if nxt == start:
+                loops.extend(_simple(walk))
+    return sorted((np.asarray(x, dtype=np.int64) for x in loops if len(x) >= 3), key=lambda x: int(x.min()))
+
+
+def _simple(walk: list[int]) -> list[list[int]]:
+    """A closed walk split at its repeated vertices into simple cycles."""
+    out, stack, where = [], [], {}
+    for v in walk:
+        if v in where:  # a cycle closed at v: cut it off the stack
+            i = where[v]
+            out.append(stack[i:])
+            for u in stack[i + 1:]:
+                where.pop(u, None)
+            stack = stack[: i + 1]
+        else:
+            where[v] = len(stack)
+            stack.append(v)
+    out.append(stack)
+    return out
+
+
+def _frame(points: np.ndarray, order_sign: float) -> tuple[np.ndarray, np.ndarray, float]:
+    """Centre, axes (e1, e2, n) of a loop's plane, with n along its vector area times ``order_sign``, and that area."""
+    c = points.mean(axis=0)
+    p = points - c
+    vec = 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
+    area = float(np.linalg.norm(vec))
+    n = order_sign * vec / max(area, 1e-300)
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return c, np.stack([e1, np.cross(n, e1), n]), area
+
+
+def _surrounded(mesh: Mesh, loop: np.ndarray, n: np.ndarray) -> float:
+    """Median reach, per edge length, of the triangle outside each loop edge outward in the plane normal to ``n``."""
+    V, F = mesh.vertices, mesh.faces
+    a, b = loop, np.roll(loop, -1)
+    key = {(int(x), int(y)): i for i, (x, y) in enumerate(zip(a, b))}
+    third = np.zeros(len(loop), dtype=np.int64)
+    for f in np.unique(np.concatenate([mesh.vertex_faces[int(v)] for v in loop])):
+        t = F[f]
+        for k in range(3):
+            i = key.get((int(t[k]), int(t[(k + 1) % 3])))
+            if i is not None:
+                third[i] = t[(k + 2) % 3]
+    e = V[b] - V[a]
+    length = np.linalg.norm(e, axis=1)
+    out = np.cross(n, e)  # the fill runs b → a with its interior on its left: the mesh is on the right of a → b
+    out /= np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+    reach = np.einsum("ij,ij->i", V[third] - 0.5 * (V[a] + V[b]), out) / np.maximum(length, 1e-300)
+    return float(np.median(reach))
+
+
+def _rings(mesh: Mesh, loop: np.ndarray, rings: int) -> np.ndarray:
+    """Vertices within ``rings`` edges of the loop (the loop's own included)."""
+    E = mesh.edges_unique
+    n = len(mesh.vertices)
+    adj = csr_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n))
+    seen = np.zeros(n, dtype=bool)
+    seen[loop] = True
+    front = seen.copy()
+    for _ in range(rings):
+        front = (adj @ front.astype(float) > 0) & ~seen
+        seen |= front
+    return np.flatnonzero(seen)
+
+
+def _quadric(xy: np.ndarray, z: np.ndarray):
+    """Least-squares z = quadric(x, y) (a plane with fewer than 12 points, twice its six coefficients)."""
+    x, y = xy[:, 0], xy[:, 1]
+    cols = [np.ones_like(x), x, y] + ([x * x, x * y, y * y] if len(x) >= 12 else [])
+    coef = np.linalg.lstsq(np.stack(cols, axis=1), z, rcond=None)[0]
+
+    def q(p: np.ndarray) -> np.ndarray:
+        u, v = p[:, 0], p[:, 1]
+        basis = [np.ones_like(u), u, v] + ([u * u, u * v, v * v] if len(coef) == 6 else [])
+        return np.stack(basis, axis=1) @ coef
+
+    return q
+
+
+def _lattice_disk(loop2: np.ndarray, h: float, taken: set) -> tuple[np.ndarray, np.ndarray] | None:
+    """Interior points (a triangular lattice of spacing ``h``) and triangles of the polygon ``loop2`` (counter-
+    clockwise); triangles index ``[loop2; points]``, counter-clockwise. None if they do not make a disk on the loop.
+    A chord between loop vertices that ``taken`` holds (pairs ``(i, j)``, i < j: an edge the mesh has outside the loop)
+    is split at its midpoint: kept, it would be a third triangle's edge."""
+    import shapely
+    from scipy.spatial import Delaunay
+
+    poly = shapely.Polygon(loop2)
+    if not poly.is_valid or poly.area <= 0:
+        return None
+    lo, hi = loop2.min(axis=0), loop2.max(axis=0)
+    ys = np.arange(lo[1], hi[1] + h, h * np.sqrt(3) / 2)  # a triangular lattice: rows h·√3/2 apart, every other shifted
+    rows = [np.arange(lo[0] + (0.5 * h if i % 2 else 0.0), hi[0] + h, h) for i in range(len(ys))]
+    pts = np.concatenate([np.c_[xs, np.full(len(xs), y)] for xs, y in zip(rows, ys)])
+    if len(pts):
+        inside = shapely.contains_xy(poly, pts[:, 0], pts[:, 1])
+        pts = pts[inside]
+        ring = shapely.LinearRing(loop2)
+        pts = pts[shapely.distance(ring, shapely.points(pts)) >= RIM_CLEARANCE * h]
+    allp = np.vstack([loop2, pts])
+    tri = Delaunay(allp).simplices
+    cen = allp[tri].mean(axis=1)
+    tri = tri[shapely.contains_xy(poly, cen[:, 0], cen[:, 1])]
+    d = allp[tri]
+    cross = (d[:, 1, 0] - d[:, 0, 0]) * (d[:, 2, 1] - d[:, 0, 1]) - (d[:, 1, 1] - d[:, 0, 1]) * (d[:, 2, 0] - d[:, 0, 0])
+    tri = np.where((cross < 0)[:, None], tri[:, [0, 2, 1]], tri)
+    if not _is_disk(tri, len(loop2), len(allp)):
+        return None
+    for _ in range(len(taken)):
+        allp, tri, split = _split_chord(allp, tri, len(loop2), taken)
+        if not split:
+            break
+    return allp[len(loop2):], tri
+
+
+def _split_chord(p: np.ndarray, tri: np.ndarray, n_loop: int, taken: set) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(p, tri)`` with the first chord of ``taken`` the triangles use split at its midpoint (its two triangles made
+    four), and whether there was one."""
+    for t, k in np.ndindex(len(tri), 3):
+        a, b = int(tri[t, k]), int(tri[t, (k + 1) % 3])
+        if a < n_loop and b < n_loop and (min(a, b), max(a, b)) in taken:
+            other = np.flatnonzero((tri == b).any(axis=1) & (tri == a).any(axis=1) & (np.arange(len(tri)) != t))
+            m = len(p)
+            p = np.vstack([p, 0.5 * (p[a] + p[b])])
+            new = []
+            for u in [t, *other.tolist()]:
+                row = tri[u].tolist()
+                i = next(j for j in range(3) if {row[j], row[(j + 1) % 3]} == {a, b})
+                x, y, z = row[i], row[(i + 1) % 3], row[(i + 2) % 3]
+                new += [[x, m, z], [m, y, z]]
+            keep = np.ones(len(tri), dtype=bool)
+            keep[[t, *other.tolist()]] = False
+            return p, np.vstack([tri[keep], np.asarray(new)]), True
+    return p, tri, False
+
+
+def _is_disk(tri: np.ndarray, n_loop: int, n_all: int) -> bool:
+    """True if the triangles make a disk whose boundary is the loop 0 → 1 → … → n_loop-1 (counter-clockwise)."""
+    if len(tri) != n_loop + 2 * (n_all - n_loop) - 2:  # Euler: a disk's triangles from its boundary and inner vertices
+        return False
+    directed = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    key = directed[:, 0] * n_all + directed[:, 1]
+    if len(np.unique(key)) != len(key):
+        return False
+    rev = directed[:, 1] * n_all + directed[:, 0]
+    lone = directed[~np.isin(key, rev)]  # edges without their opposite: the disk's boundary
+    want = np.c_[np.arange(n_loop), (np.arange(n_loop) + 1) % n_loop]
+    return len(lone) == n_loop and set(map(tuple, lone.tolist())) == set(map(tuple, want.tolist()))
+
+
+def _harmonic(tri: np.ndarray, n_loop: int, n_all: int, rim: np.ndarray) -> np.ndarray:
+    """Values on every vertex of the disk: ``rim`` on the loop, the graph-harmonic interpolation inside."""
+    if n_all == n_loop:
+        return rim
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    A = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n_all, n_all)).tocsr()
+    A = ((A + A.T) > 0).astype(float)
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    inner = np.arange(n_loop, n_all)
+    L = csr_matrix(-A[inner][:, inner] + csr_matrix((deg[inner], (np.arange(len(inner)), np.arange(len(inner))))))
+    rhs = A[inner][:, :n_loop] @ rim
+    return np.r_[rim, np.atleast_1d(spsolve(L.tocsc(), rhs))]
+
+
+def _parameter_polygons(xy: np.ndarray) -> list[np.ndarray]:
+    """Simple counter-clockwise polygons to triangulate a loop projected on its plane as ``xy`` in, best first: the
+    projection itself, smoothed along the loop until it no longer crosses itself (noise of the order of the edge
+    length folds a rim's projection here and there), then a circle of the loop's length (convex: its Delaunay
+    triangulation keeps every rim edge, for a loop wrapped round an edge or a shaft or too concave for the lattice)."""
+    import shapely
+
+    out = []
+    p = xy
+    for _ in range(PARAMETER_SMOOTHING):
+        if shapely.Polygon(p).is_valid and _signed_area(p) > 0:
+            out.append(p)
+            break
+        p = 0.5 * p + 0.25 * (np.roll(p, 1, axis=0) + np.roll(p, -1, axis=0))
+    step = np.linalg.norm(xy - np.roll(xy, 1, axis=0), axis=1)
+    t = 2 * np.pi * np.cumsum(step) / step.sum()
+    return out + [step.sum() / (2 * np.pi) * np.c_[np.cos(t), np.sin(t)]]
+
+
+def _signed_area(p: np.ndarray) -> float:
+    return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
+
+
+def _fill(mesh: Mesh, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """New vertices and triangles (indices into ``[mesh vertices; new]``) closing ``loop``; None if it cannot."""
+    V = mesh.vertices
+    fill_loop = loop[::-1]  # the fill runs against the mesh's own edges
+    c, axes, _ = _frame(V[fill_loop], 1.0)
+    h = float(np.median(np.linalg.norm(V[fill_loop] - V[np.roll(fill_loop, -1)], axis=1)))
+    local = (V - c) @ axes.T
+    where = {int(v): i for i, v in enumerate(fill_loop)}
+    E = mesh.edges_unique[np.isin(mesh.edges_unique, fill_loop).all(axis=1)]
+    pairs = {(min(where[int(a)], where[int(b)]), max(where[int(a)], where[int(b)])) for a, b in E}
+    n = len(fill_loop)
+    taken = {(i, j) for i, j in pairs if j - i not in (1, n - 1)}  # the loop's own edges are the disk's rim
+    disk = next((d for d in (_lattice_disk(p, h, taken) for p in _parameter_polygons(local[fill_loop, :2]))
+                 if d is not None), None)
+    if disk is None:
+        return None
+    pts, tri = disk
+    n_loop, n_all = len(fill_loop), len(fill_loop) + len(pts)
+    rim = local[fill_loop]
+    # the membrane the rim spans (each inner vertex the mean of its neighbours): a disk on the rim whatever its shape
+    xyz = np.stack([_harmonic(tri, n_loop, n_all, rim[:, k]) for k in range(3)], axis=1)
+    ring = _rings(mesh, loop, FIT_RINGS)
+    faces = np.unique(np.concatenate([mesh.vertex_faces[int(v)] for v in ring]))
+    if np.mean(mesh.face_normals[faces] @ axes[2] > 0) >= HEIGHT_FIELD_SHARE:
+        # the surroundings are a height field over the loop's plane: the patch continues their quadric, meeting the
+        # rim exactly (its misfit there carried inward harmonically)
+        q = _quadric(local[ring, :2], local[ring, 2])
+        xyz[:, 2] = q(xyz[:, :2]) + _harmonic(tri, n_loop, n_all, rim[:, 2] - q(rim[:, :2]))
+    new = c + xyz[n_loop:] @ axes
+    index = np.r_[fill_loop, len(V) + np.arange(len(pts))]
+    return new, index[tri]
+
+
+def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
+    """``mesh`` with its small holes closed over (module doc), and what was closed; a mesh without boundary loops
+    comes back as the same object."""
+    loops = boundary_loops(mesh)
+    nothing = HoleReport(len(loops), 0, np.zeros(len(mesh.faces), dtype=bool), len(mesh.vertices), 0.0)
+    if not loops:
+        return mesh, nothing
+    total = mesh.area
+    verts, tris, comps, closed = [mesh.vertices], [mesh.faces], [mesh.component], 0
+    count = len(mesh.vertices)
+    for loop in loops:
+        _, axes, area = _frame(mesh.vertices[loop[::-1]], 1.0)
+        extent = float(np.linalg.norm(np.ptp(mesh.vertices[loop], axis=0)))
+        if area > HOLE_AREA_SHARE * total or (extent > SMALL_EXTENT * mesh.diagonal
+                                              and _surrounded(mesh, loop, axes[2]) < SURROUND_REACH):
+            continue
+        got = _fill(mesh, loop)
+        if got is None:
+            log.info("a hole of %d rim vertices could not be triangulated on its plane; left open", len(loop))
+            continue
+        new, tri = got
+        tri = np.where(tri >= len(mesh.vertices), tri - len(mesh.vertices) + count, tri)
+        verts.append(new)
+        tris.append(tri)
+        comps.append(np.full(len(tri), mesh.component[mesh.vertex_faces[int(loop[0])][0]]))
+        count += len(new)
+        closed += 1
+    if not closed:
+        return mesh, nothing
+    V, F = np.vstack(verts), np.vstack(tris)
+    added = np.r_[np.zeros(len(mesh.faces), dtype=bool), np.ones(len(F) - len(mesh.faces), dtype=bool)]
+    out = Mesh(V, F, np.r_[mesh.source_face, np.full(int(added.sum()), -1)], mesh.n_input_faces,
+               np.concatenate(comps), mesh.report)
+    out = dataclasses.replace(out, report=dataclasses.replace(
+        mesh.report, boundary_edges=int((out.edge_face_count == 1).sum()),
+        non_manifold_edges=int((out.edge_face_count > 2).sum())))
+    area = float(out.face_areas[added].sum())
+    log.info("%d of %d boundary loops closed over (%d triangles, %.3g %% of the area)", closed, len(loops),
+             int(added.sum()), 100.0 * area / total)
+    return out, HoleReport(len(loops), closed, added, len(mesh.vertices), area)
