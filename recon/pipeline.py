@@ -21,7 +21,7 @@ from .decompose import Decomposition, decompose
 from .errors import InputError, ReconError
 from ._progress import Count
 from ._tolerance import tolerance_for
-from .mesh import Mesh, SpikeReport, clean_mesh, load_mesh, move_spikes
+from .mesh import HoleReport, Mesh, SpikeReport, clean_mesh, close_holes, load_mesh, move_spikes
 from ._working import working_copy
 from .segment import as_decomposition, coplanar_pairs, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
 
@@ -138,6 +138,7 @@ def convert(
     t = time.perf_counter()
     step("load", 0.0)
     mesh, spikes = _move_spikes(_as_mesh(mesh))  # a scanner's outliers, before anything measures the mesh
+    user, (mesh, holes) = mesh, close_holes(mesh)  # an occluded scan's small holes, covered by the faces around them
     times["load"] = time.perf_counter() - t
     step("load", 1.0)
 
@@ -190,8 +191,8 @@ def convert(
         step("deviation", 0.0)
         try:
             with occ_messages():
-                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=names,
-                              progress=items("deviation"))
+                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=names, progress=items("deviation"),
+                              measured=np.arange(len(mesh.vertices)) < holes.input_vertices)
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
             dev_error = str(err)
@@ -208,7 +209,20 @@ def convert(
             f"{len(spikes.vertices)} vertices stood off the surface as spikes (up to "
             f"{report['mesh']['spikes']['max_moved_pct']:.2g} % of the diagonal) and were moved onto their "
             "neighbours' surface; the deviation is measured to where they were moved")
+    if holes.closed:
+        _note_holes(report, user, holes)
+        mesh, labels = user, labels[: len(user.faces)]  # the added triangles come last: the user's keep their labels
     return Conversion(report, mesh, dec, labels, fits, brep, extra={} if work is None else {"working_copy": work})
+
+
+def _note_holes(report: dict, user: Mesh, holes: HoleReport) -> None:
+    """The report's entry and warning for the holes :func:`recon.mesh.close_holes` closed over."""
+    report["mesh"]["triangles"] = int(len(user.faces))  # the user's: the added ones are counted under "holes"
+    report["mesh"]["holes"] = holes.to_json(user.area)
+    report["warnings"].append(
+        f"{holes.closed} of {holes.loops} holes in the mesh were closed over by the faces around them "
+        f"({report['mesh']['holes']['area_added_pct']:.2g} % of its area); the deviation mesh→shape is measured on "
+        "the input's vertices only, shape→mesh to the input's triangles and the cover over the holes")
 
 
 def _as_mesh(mesh) -> Mesh:
