@@ -90,3 +90,12 @@ def test_closed_mesh_untouched_and_deterministic():
     np.testing.assert_array_equal(a.vertices, b.vertices)
     np.testing.assert_array_equal(a.faces, b.faces)
     np.testing.assert_array_equal(ra.added, rb.added)
+
+
+def test_inward_open_mesh_closed_outward():
+    """An open mesh wound inward (the cleaning keeps an open part's winding) comes out closed and outward."""
+    s = _sphere()
+    mesh, _ = _holed(trimesh.Trimesh(s.vertices, s.faces[:, ::-1], process=False))
+    assert mesh.volume < 0
+    out, rep = close_holes(mesh)
+    assert rep.closed == 2 and (out.edge_face_count == 2).all() and out.volume > 0

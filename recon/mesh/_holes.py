@@ -11,7 +11,8 @@ A hole is filled with triangles of the loop's own edge length: a lattice of that
 its plane (smoothed until it does not cross itself), triangulated with the loop (Delaunay), placed as the membrane
 the rim spans and, where the surroundings are a height field over the plane, lifted onto a quadric fitted to the
 rings of vertices around the loop, the rim's misfit carried inward harmonically so the patch meets the rim exactly. New vertices and triangles
-come after the mesh's own (its arrays are a prefix of the result's), so the input's triangles keep their indices.
+come after the mesh's own (its arrays are a prefix of the result's), so the input's triangles keep their indices (a
+part whose closed surface encloses negative volume, as an open mesh wound inward does, is turned round as a whole).
 """
 
 from __future__ import annotations
@@ -120,7 +121,9 @@ def boundary_loops(mesh: Mesh) -> list[np.ndarray]:
 
 def _simple(walk: list[int]) -> list[list[int]]:
     """A closed walk split at its repeated vertices into simple cycles."""
-    out, stack, where = [], [], {}
+    out: list[list[int]] = []
+    stack: list[int] = []
+    where: dict[int, int] = {}
     for v in walk:
         if v in where:  # a cycle closed at v: cut it off the stack
             i = where[v]
@@ -167,12 +170,16 @@ def _surrounded(mesh: Mesh, loop: np.ndarray, n: np.ndarray) -> float:
     return float(np.median(reach))
 
 
-def _rings(mesh: Mesh, loop: np.ndarray, rings: int) -> np.ndarray:
-    """Vertices within ``rings`` edges of the loop (the loop's own included)."""
+def _adjacency(mesh: Mesh) -> csr_matrix:
+    """The vertices' adjacency matrix (1 between the ends of every edge)."""
     E = mesh.edges_unique
     n = len(mesh.vertices)
-    adj = csr_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n))
-    seen = np.zeros(n, dtype=bool)
+    return csr_matrix((np.ones(2 * len(E)), (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n))
+
+
+def _rings(adj: csr_matrix, loop: np.ndarray, rings: int) -> np.ndarray:
+    """Vertices within ``rings`` edges of the loop (the loop's own included), by the adjacency ``adj``."""
+    seen = np.zeros(adj.shape[0], dtype=bool)
     seen[loop] = True
     front = seen.copy()
     for _ in range(rings):
@@ -303,7 +310,7 @@ def _signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
 
 
-def _fill(mesh: Mesh, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np.ndarray] | None:
     """New vertices and triangles (indices into ``[mesh vertices; new]``) closing ``loop``; None if it cannot."""
     V = mesh.vertices
     fill_loop = loop[::-1]  # the fill runs against the mesh's own edges
@@ -324,7 +331,7 @@ def _fill(mesh: Mesh, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     rim = local[fill_loop]
     # the membrane the rim spans (each inner vertex the mean of its neighbours): a disk on the rim whatever its shape
     xyz = np.stack([_harmonic(tri, n_loop, n_all, rim[:, k]) for k in range(3)], axis=1)
-    ring = _rings(mesh, loop, FIT_RINGS)
+    ring = _rings(adj, loop, FIT_RINGS)
     faces = np.unique(np.concatenate([mesh.vertex_faces[int(v)] for v in ring]))
     if np.mean(mesh.face_normals[faces] @ axes[2] > 0) >= HEIGHT_FIELD_SHARE:
         # the surroundings are a height field over the loop's plane: the patch continues their quadric, meeting the
@@ -336,6 +343,22 @@ def _fill(mesh: Mesh, loop: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     return new, index[tri]
 
 
+def _outward(mesh: Mesh) -> Mesh:
+    """``mesh`` with every closed component of negative signed volume turned inside out: the cleaning oriented an open
+    component as most of its area ran, which once closed may enclose negative volume (as it turns closed ones)."""
+    V, F, comp = mesh.vertices, mesh.faces, mesh.component
+    P = V[F] - V.mean(axis=0)
+    vol = np.bincount(comp, weights=np.einsum("ij,ij->i", P[:, 0], np.cross(P[:, 1], P[:, 2])))
+    open_comp = np.zeros(len(vol), dtype=bool)
+    open_comp[comp[(mesh.edge_face_count[mesh.face_edges] != 2).any(axis=1)]] = True
+    inside = (vol < 0)[comp] & ~open_comp[comp]
+    if not inside.any():
+        return mesh
+    F = F.copy()
+    F[inside] = F[inside][:, ::-1]
+    return dataclasses.replace(mesh, faces=F)
+
+
 def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
     """``mesh`` with its small holes closed over (module doc), and what was closed; a mesh without boundary loops
     comes back as the same object."""
@@ -345,14 +368,14 @@ def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
         return mesh, nothing
     total = mesh.area
     verts, tris, comps, closed = [mesh.vertices], [mesh.faces], [mesh.component], 0
-    count = len(mesh.vertices)
+    count, adj = len(mesh.vertices), _adjacency(mesh)
     for loop in loops:
         _, axes, area = _frame(mesh.vertices[loop[::-1]], 1.0)
         extent = float(np.linalg.norm(np.ptp(mesh.vertices[loop], axis=0)))
         if area > HOLE_AREA_SHARE * total or (extent > SMALL_EXTENT * mesh.diagonal
                                               and _surrounded(mesh, loop, axes[2]) < SURROUND_REACH):
             continue
-        got = _fill(mesh, loop)
+        got = _fill(mesh, loop, adj)
         if got is None:
             log.info("a hole of %d rim vertices could not be triangulated on its plane; left open", len(loop))
             continue
@@ -369,7 +392,7 @@ def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
     added = np.r_[np.zeros(len(mesh.faces), dtype=bool), np.ones(len(F) - len(mesh.faces), dtype=bool)]
     out = Mesh(V, F, np.r_[mesh.source_face, np.full(int(added.sum()), -1)], mesh.n_input_faces,
                np.concatenate(comps), mesh.report)
-    out = dataclasses.replace(out, report=dataclasses.replace(
+    out = dataclasses.replace(_outward(out), report=dataclasses.replace(
         mesh.report, boundary_edges=int((out.edge_face_count == 1).sum()),
         non_manifold_edges=int((out.edge_face_count > 2).sum())))
     area = float(out.face_areas[added].sum())
