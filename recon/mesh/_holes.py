@@ -57,6 +57,21 @@ PARAMETER_SMOOTHING = 30
 #: quadric: noise of the order of the edge length flips a few; a ring wrapped round an edge or shaft flips many.
 HEIGHT_FIELD_SHARE = 0.95
 
+#: Vertices of a smooth region around a hole whose surface is extended across it: twice the six coefficients of its
+#: quadric.
+REGION_VERTICES = 12
+
+#: Neighbouring normals on one face turn by noise only: this many times their median turn is a crease.
+CREASE_NOISE = 3.0
+
+#: The least turn between neighbouring normals taken for a crease (radians, 20°): a blend's normals turn by less
+#: over a vertex, however clean the mesh.
+CREASE_LEAST = float(np.radians(20.0))
+
+#: A region's surface is not extended along a hole's normal that runs within ~78° of its plane (cos < 0.2): the
+#: step onto it grows as 1/cos, and a wall beside a hole is reached through its neighbour's extension.
+GRAZING = 0.2
+
 #: Lattice points kept this many edge lengths inside the loop: the Delaunay circle on a rim edge (its diameter) then
 #: holds no lattice point, so the triangulation keeps every rim edge.
 RIM_CLEARANCE = 0.6
@@ -310,6 +325,83 @@ def _signed_area(p: np.ndarray) -> float:
     return 0.5 * float(np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1]))
 
 
+def _smooth_regions(mesh: Mesh, ring: np.ndarray, adj: csr_matrix) -> list[np.ndarray]:
+    """The ring's vertices split at creases into the smooth regions of at least :data:`REGION_VERTICES` (largest
+    first, at most three): adjacent vertices join when their normals turn less than :data:`CREASE_NOISE` times the
+    ring's median turn between neighbours (what noise turns them on one face), and at least :data:`CREASE_LEAST`."""
+    from scipy.sparse.csgraph import connected_components
+
+    F = mesh.faces
+    faces = np.unique(np.concatenate([mesh.vertex_faces[int(v)] for v in ring]))
+    acc = np.zeros((len(mesh.vertices), 3))
+    np.add.at(acc, F[faces].ravel(), np.repeat(mesh.face_cross[faces], 3, axis=0))  # area-weighted
+    sub = adj[ring][:, ring]
+    nrm = acc[ring] + sub @ acc[ring]  # with their neighbours': one face's noise averaged out
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    i, j = sub.nonzero()
+    up = i < j
+    i, j = i[up], j[up]
+    if not len(i):
+        return []
+    turn = np.arccos(np.clip(np.einsum("ij,ij->i", nrm[i], nrm[j]), -1.0, 1.0))
+    limit = max(CREASE_LEAST, CREASE_NOISE * float(np.median(turn)))
+    keep = turn < limit
+    n, lab = connected_components(csr_matrix((np.ones(int(keep.sum())), (i[keep], j[keep])), shape=(len(ring),) * 2),
+                                  directed=False)
+    size = np.bincount(lab, minlength=n)
+    big = [r for r in np.argsort(-size, kind="stable") if size[r] >= REGION_VERTICES][:3]
+    return [ring[lab == r] for r in big]
+
+
+class _Patch:
+    """A quadric height field over the plane of a smooth region's points, its normal along ``outward``."""
+
+    def __init__(self, points: np.ndarray, outward: np.ndarray):
+        self.c = points.mean(axis=0)
+        _, _, vt = np.linalg.svd(points - self.c, full_matrices=False)
+        n = vt[2] if vt[2] @ outward >= 0 else -vt[2]
+        self.axes = np.stack([vt[0], np.cross(n, vt[0]), n])
+        local = (points - self.c) @ self.axes.T
+        self.q = _quadric(local[:, :2], local[:, 2])
+
+    def offset(self, p: np.ndarray) -> np.ndarray:
+        """Signed height of ``p`` over the surface along its normal (> 0 outside)."""
+        local = (p - self.c) @ self.axes.T
+        return local[:, 2] - self.q(local[:, :2])
+
+    def along(self, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """The steps t that take each ``p + t n`` onto the surface (inf where n runs along it)."""
+        cos = float(n @ self.axes[2])
+        if abs(cos) < GRAZING:
+            return np.full(len(p), np.inf)
+        t = np.zeros(len(p))
+        for _ in range(8):  # the quadric's slope is small in its own frame: a few fixed-point steps converge
+            t -= self.offset(p + t[:, None] * n) / cos
+        return t
+
+
+def _envelope(mesh: Mesh, regions: list[np.ndarray], n: np.ndarray):
+    """The step along ``n`` onto the surface the smooth regions' extensions make: their lower envelope where every
+    region's points lie below the others' (a convex crease), the upper where above (a concave one); None if mixed."""
+    V = mesh.vertices
+    outward = [float(np.sign(n @ np.mean(mesh.face_normals[np.concatenate(
+        [mesh.vertex_faces[int(v)] for v in r[:50]])], axis=0))) or 1.0 for r in regions]
+    patches = [_Patch(V[r], o * n) for r, o in zip(regions, outward)]
+    below = [np.median(patches[b].offset(V[regions[a]])) < 0 for a in range(len(regions))
+             for b in range(len(regions)) if a != b]
+    if not (all(below) or not any(below)):
+        return None
+    convex = all(below)
+
+    def step(p: np.ndarray) -> np.ndarray:
+        t = np.stack([q.along(p, n) for q in patches])
+        if convex:
+            return t.min(axis=0)
+        return np.where(np.isinf(t), -np.inf, t).max(axis=0)
+
+    return step
+
+
 def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np.ndarray] | None:
     """New vertices and triangles (indices into ``[mesh vertices; new]``) closing ``loop``; None if it cannot."""
     V = mesh.vertices
@@ -332,8 +424,18 @@ def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np
     # the membrane the rim spans (each inner vertex the mean of its neighbours): a disk on the rim whatever its shape
     xyz = np.stack([_harmonic(tri, n_loop, n_all, rim[:, k]) for k in range(3)], axis=1)
     ring = _rings(adj, loop, FIT_RINGS)
+    regions = _smooth_regions(mesh, ring, adj)
+    step = _envelope(mesh, regions, axes[2]) if len(regions) > 1 else None
     faces = np.unique(np.concatenate([mesh.vertex_faces[int(v)] for v in ring]))
-    if np.mean(mesh.face_normals[faces] @ axes[2] > 0) >= HEIGHT_FIELD_SHARE:
+    if step is not None:
+        # the faces around the hole meet across it: the patch lies on their extensions, to their crease; the rim's
+        # misfit carried inward harmonically so that it meets the rim exactly
+        p3 = c + xyz @ axes
+        t = step(p3)
+        t = np.where(np.isfinite(t), t, 0.0)
+        t += _harmonic(tri, n_loop, n_all, -t[:n_loop])
+        xyz[:, 2] += t
+    elif np.mean(mesh.face_normals[faces] @ axes[2] > 0) >= HEIGHT_FIELD_SHARE:
         # the surroundings are a height field over the loop's plane: the patch continues their quadric, meeting the
         # rim exactly (its misfit there carried inward harmonically)
         q = _quadric(local[ring, :2], local[ring, 2])
