@@ -57,6 +57,10 @@ PARAMETER_SMOOTHING = 30
 #: quadric: noise of the order of the edge length flips a few; a ring wrapped round an edge or shaft flips many.
 HEIGHT_FIELD_SHARE = 0.95
 
+#: The share of a plane's misfit (RMS) a quadric must take off to be kept: on a flat face noise alone lets its three
+#: more coefficients take ~3/(2n) of it (n ≥ 12 points: an eighth at most), on a curved one the plane's misfit is the sag.
+CURVED_GAIN = 0.3
+
 #: Vertices of a smooth region around a hole whose surface is extended across it: twice the six coefficients of its
 #: quadric.
 REGION_VERTICES = 12
@@ -204,10 +208,16 @@ def _rings(adj: csr_matrix, loop: np.ndarray, rings: int) -> np.ndarray:
 
 
 def _quadric(xy: np.ndarray, z: np.ndarray):
-    """Least-squares z = quadric(x, y) (a plane with fewer than 12 points, twice its six coefficients)."""
+    """Least-squares z = quadric(x, y), or the plane where the quadric takes less than :data:`CURVED_GAIN` of the
+    plane's misfit off (a flat face's noise: its extra coefficients would only bend the extension)."""
     x, y = xy[:, 0], xy[:, 1]
-    cols = [np.ones_like(x), x, y] + ([x * x, x * y, y * y] if len(x) >= 12 else [])
-    coef = np.linalg.lstsq(np.stack(cols, axis=1), z, rcond=None)[0]
+    plane = np.stack([np.ones_like(x), x, y], axis=1)
+    coef = np.linalg.lstsq(plane, z, rcond=None)[0]
+    if len(x) >= 12:  # twice the quadric's six coefficients
+        full = np.c_[plane, x * x, x * y, y * y]
+        quad = np.linalg.lstsq(full, z, rcond=None)[0]
+        if np.linalg.norm(full @ quad - z) < (1.0 - CURVED_GAIN) * np.linalg.norm(plane @ coef - z):
+            coef = quad
 
     def q(p: np.ndarray) -> np.ndarray:
         u, v = p[:, 0], p[:, 1]
