@@ -53,9 +53,11 @@ class Conversion:
         Strict-JSON figures: faces by type, deviation, validity, time per stage, per-face records, and the
         ``verdict`` of the acceptance rules (:mod:`recon.verdict`).
     mesh : Mesh
+        The cleaned mesh, with its small holes closed over when it had some (``extra["holes"]``, a
+        :class:`recon.mesh.HoleReport`, marks the added triangles: they come after the input's).
     decomposition : Decomposition
     labels : (m,) int
-        The face label of every cleaned triangle (the decomposition with sharp features dissolved).
+        The face label of every triangle of ``mesh`` (the decomposition with sharp features dissolved).
     fits : dict of int → SurfaceFit
     brep : recon.brep.BrepResult
     """
@@ -209,10 +211,11 @@ def convert(
             f"{len(spikes.vertices)} vertices stood off the surface as spikes (up to "
             f"{report['mesh']['spikes']['max_moved_pct']:.2g} % of the diagonal) and were moved onto their "
             "neighbours' surface; the deviation is measured to where they were moved")
-    if holes.closed:
+    extra: dict = {} if work is None else {"working_copy": work}
+    if holes.closed:  # the mesh returned and judged (also in the written file) is the closed one
         _note_holes(report, user, holes)
-        mesh, labels = user, labels[: len(user.faces)]  # the added triangles come last: the user's keep their labels
-    return Conversion(report, mesh, dec, labels, fits, brep, extra={} if work is None else {"working_copy": work})
+        extra["holes"] = holes
+    return Conversion(report, mesh, dec, labels, fits, brep, extra=extra)
 
 
 def _note_holes(report: dict, user: Mesh, holes: HoleReport) -> None:

@@ -104,3 +104,25 @@ def test_inward_open_mesh_closed_outward():
     assert mesh.volume < 0
     out, rep = close_holes(mesh)
     assert rep.closed == 2 and (out.edge_face_count == 2).all() and out.volume > 0
+
+
+def test_convert_closes_a_hole_and_measures_the_input_only():
+    """recon.convert on a noisy box with a hole across an edge: a valid closed solid, the hole in the report, the
+    deviation mesh→shape counted over the input's vertices only, and the verdict's rules all hold."""
+    from recon import convert
+
+    box = trimesh.creation.box((10.0, 10.0, 10.0))
+    for _ in range(4):
+        box = box.subdivide()
+    v = box.vertices + np.random.default_rng(2).normal(0.0, 0.01, box.vertices.shape)
+    cut = np.linalg.norm(box.triangles_center - [0.0, 5.0, 5.0], axis=1) < 1.5
+    mesh = clean_mesh(v, box.faces[~cut])
+    conv = convert(mesh)
+    rep = conv.report
+    assert rep["mesh"]["holes"]["closed"] == 1 and rep["mesh"]["triangles"] == len(mesh.faces)
+    assert rep["validity"]["shape_type"] == "solid" and rep["validity"]["ok"]
+    assert rep["n_faces"] == 6
+    assert rep["deviation"]["mesh_to_shape"]["count"] == len(mesh.vertices)
+    assert conv.verdict.ok, conv.verdict
+    added = conv.extra["holes"].added
+    assert len(conv.labels) == len(conv.mesh.faces) == len(added) and added.sum() > 0

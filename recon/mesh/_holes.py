@@ -76,6 +76,9 @@ CREASE_LEAST = float(np.radians(20.0))
 #: step onto it grows as 1/cos, and a wall beside a hole is reached through its neighbour's extension.
 GRAZING = 0.2
 
+#: A crease vertex no nearer an edge's end than this share of the edge (a thinner sliver's normal turns with noise).
+CREASE_END = 0.1
+
 #: Lattice points kept this many edge lengths inside the loop: the Delaunay circle on a rim edge (its diameter) then
 #: holds no lattice point, so the triangulation keeps every rim edge.
 RIM_CLEARANCE = 0.6
@@ -390,26 +393,86 @@ class _Patch:
         return t
 
 
-def _envelope(mesh: Mesh, regions: list[np.ndarray], n: np.ndarray):
-    """The step along ``n`` onto the surface the smooth regions' extensions make: their lower envelope where every
-    region's points lie below the others' (a convex crease), the upper where above (a concave one); None if mixed."""
-    V = mesh.vertices
-    outward = [float(np.sign(n @ np.mean(mesh.face_normals[np.concatenate(
-        [mesh.vertex_faces[int(v)] for v in r[:50]])], axis=0))) or 1.0 for r in regions]
-    patches = [_Patch(V[r], o * n) for r, o in zip(regions, outward)]
-    below = [np.median(patches[b].offset(V[regions[a]])) < 0 for a in range(len(regions))
-             for b in range(len(regions)) if a != b]
-    if not (all(below) or not any(below)):
-        return None
-    convex = all(below)
+class _Envelope:
+    """The surface the smooth regions around a hole make when extended across it: their lower envelope along the
+    hole's normal ``n`` where every region's points lie below the others' surfaces (a convex crease or corner), the
+    upper where above (a concave one)."""
 
-    def step(p: np.ndarray) -> np.ndarray:
-        t = np.stack([q.along(p, n) for q in patches])
-        if convex:
-            return t.min(axis=0)
-        return np.where(np.isinf(t), -np.inf, t).max(axis=0)
+    def __init__(self, patches: list[_Patch], n: np.ndarray, convex: bool):
+        self.patches, self.n, self.convex = patches, n, convex
 
-    return step
+    @classmethod
+    def of(cls, mesh: Mesh, regions: list[np.ndarray], n: np.ndarray) -> _Envelope | None:
+        """The envelope of ``regions`` (index arrays of vertices), None where the creases are mixed."""
+        V = mesh.vertices
+        outward = [float(np.sign(n @ np.mean(mesh.face_normals[np.concatenate(
+            [mesh.vertex_faces[int(v)] for v in r[:50]])], axis=0))) or 1.0 for r in regions]
+        patches = [_Patch(V[r], o * n) for r, o in zip(regions, outward)]
+        below = [np.median(patches[b].offset(V[regions[a]])) < 0 for a in range(len(regions))
+                 for b in range(len(regions)) if a != b]
+        if not (all(below) or not any(below)):
+            return None
+        return cls(patches, n, all(below))
+
+    def steps(self, p: np.ndarray) -> np.ndarray:
+        """(regions, len(p)): the step along n onto each region's surface (±inf where n runs along it)."""
+        t = np.stack([q.along(p, self.n) for q in self.patches])
+        return t if self.convex else np.where(np.isinf(t), -np.inf, t)
+
+    def pick(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The step onto the envelope (0 where no surface is reached) and the region it lands on, from ``steps``."""
+        side = t.argmin(axis=0) if self.convex else t.argmax(axis=0)
+        best = t[side, np.arange(t.shape[1])]
+        return np.where(np.isfinite(best), best, 0.0), side
+
+
+def _split_at_creases(env: _Envelope, P: np.ndarray, tri: np.ndarray, n_loop: int, side: np.ndarray):
+    """``(P, tri)`` with every edge whose ends lie on different regions' surfaces split where the two surfaces cross
+    (the crease), its triangles split with it: no triangle of the cover then spans a crease. The rim's own edges
+    (consecutive loop vertices, shared with the mesh) are not split."""
+    a, b = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]).T
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    rim = (hi < n_loop) & np.isin(hi - lo, [1, n_loop - 1])
+    cut = (side[a] != side[b]) & ~rim
+    keys = np.unique(lo[cut] * len(P) + hi[cut])
+    if not len(keys):
+        return P, tri
+    u, v = keys // len(P), keys % len(P)
+    tu, tv = env.steps(P[u]), env.steps(P[v])
+    k = np.arange(len(u))
+    du = tu[side[u], k] - tu[side[v], k]
+    dv = tv[side[u], k] - tv[side[v], k]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lam = np.where(np.isfinite(du - dv) & (du != dv), du / (du - dv), 0.5)
+    # no nearer an end than a tenth of the edge: a thinner sliver's normal would turn with the noise
+    lam = np.clip(np.nan_to_num(lam, nan=0.5), CREASE_END, 1.0 - CREASE_END)
+    x = P[u] + lam[:, None] * (P[v] - P[u])
+    x += env.pick(env.steps(x))[0][:, None] * env.n
+    mid = dict(zip(keys.tolist(), range(len(P), len(P) + len(keys))))
+    out = []
+    for t in tri.tolist():
+        m = [mid.get(min(t[i], t[(i + 1) % 3]) * len(P) + max(t[i], t[(i + 1) % 3])) for i in range(3)]
+        out.extend(_split_triangle(t, m))
+    return np.vstack([P, x]), np.asarray(out, dtype=np.int64)
+
+
+def _split_triangle(t: list[int], m: list[int | None]) -> list[list[int]]:
+    """Triangle ``t`` (i, j, k) split at the new vertices ``m`` of its edges ij, jk, ki (None: not split), in its
+    orientation."""
+    count = sum(x is not None for x in m)
+    if count == 0:
+        return [t]
+    if count == 3:
+        (i, j, k), (x3, y3, z3) = t, [int(q) for q in m if q is not None]
+        return [[i, x3, z3], [x3, j, y3], [z3, y3, k], [x3, y3, z3]]
+    r = next(r for r in range(3) if (m[r] is not None) and (count == 1 or m[(r + 2) % 3] is None))
+    i, j, k = t[r], t[(r + 1) % 3], t[(r + 2) % 3]
+    x, y = m[r], m[(r + 1) % 3]
+    assert x is not None
+    if count == 1:
+        return [[i, x, k], [x, j, k]]
+    assert y is not None
+    return [[x, j, y], [i, x, y], [i, y, k]]
 
 
 def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np.ndarray] | None:
@@ -435,23 +498,25 @@ def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np
     xyz = np.stack([_harmonic(tri, n_loop, n_all, rim[:, k]) for k in range(3)], axis=1)
     ring = _rings(adj, loop, FIT_RINGS)
     regions = _smooth_regions(mesh, ring, adj)
-    step = _envelope(mesh, regions, axes[2]) if len(regions) > 1 else None
+    env = _Envelope.of(mesh, regions, axes[2]) if len(regions) > 1 else None
     faces = np.unique(np.concatenate([mesh.vertex_faces[int(v)] for v in ring]))
-    if step is not None:
-        # the faces around the hole meet across it: the patch lies on their extensions, to their crease; the rim's
-        # misfit carried inward harmonically so that it meets the rim exactly
-        p3 = c + xyz @ axes
-        t = step(p3)
-        t = np.where(np.isfinite(t), t, 0.0)
-        t += _harmonic(tri, n_loop, n_all, -t[:n_loop])
-        xyz[:, 2] += t
+    if env is not None:
+        # the faces around the hole meet across it: the patch lies on their extensions, to their crease (edges that
+        # cross it split there), the rim's misfit carried inward harmonically so that it meets the rim exactly
+        P = c + xyz @ axes
+        t, side = env.pick(env.steps(P))
+        side[:n_loop] = np.argmin(np.abs([q.offset(P[:n_loop]) for q in env.patches]), axis=0)
+        P, tri = _split_at_creases(env, P + t[:, None] * axes[2], tri, n_loop, side)
+        n_all = len(P)
+        P += np.stack([_harmonic(tri, n_loop, n_all, V[fill_loop, k] - P[:n_loop, k]) for k in range(3)], axis=1)
+        xyz = (P - c) @ axes.T
     elif np.mean(mesh.face_normals[faces] @ axes[2] > 0) >= HEIGHT_FIELD_SHARE:
         # the surroundings are a height field over the loop's plane: the patch continues their quadric, meeting the
         # rim exactly (its misfit there carried inward harmonically)
         q = _quadric(local[ring, :2], local[ring, 2])
         xyz[:, 2] = q(xyz[:, :2]) + _harmonic(tri, n_loop, n_all, rim[:, 2] - q(rim[:, :2]))
     new = c + xyz[n_loop:] @ axes
-    index = np.r_[fill_loop, len(V) + np.arange(len(pts))]
+    index = np.r_[fill_loop, len(V) + np.arange(len(new))]
     return new, index[tri]
 
 
