@@ -45,6 +45,10 @@ SURROUND_REACH = 0.25
 #: cube's area spans 0.1-0.2 of its diagonal, the open top of a box 0.8.
 SMALL_EXTENT = 0.25
 
+#: Most area a cover may have per area its rim encloses on its plane: a half turn round a shaft is π/2 times, a
+#: crease's two faces √2; a cover beyond three times bulges out of the surface, and the hole is left open.
+COVER_BULGE = 3.0
+
 #: Rings of vertices around a loop that the quadric is fitted to: three edge lengths out hold ~3 times the loop's
 #: vertices, enough to pin six coefficients against noise, and stay on the faces next to the hole.
 FIT_RINGS = 3
@@ -331,7 +335,10 @@ def _parameter_polygons(xy: np.ndarray) -> list[np.ndarray]:
         p = 0.5 * p + 0.25 * (np.roll(p, 1, axis=0) + np.roll(p, -1, axis=0))
     step = np.linalg.norm(xy - np.roll(xy, 1, axis=0), axis=1)
     t = 2 * np.pi * np.cumsum(step) / step.sum()
-    return out + [step.sum() / (2 * np.pi) * np.c_[np.cos(t), np.sin(t)]]
+    # the circle's area as the loop's own (on its plane): a jagged or wrapped rim is long for what it encloses, and a
+    # circle of its length would hold that many times the lattice points the hole needs
+    radius = min(step.sum() / (2 * np.pi), np.sqrt(max(abs(_signed_area(xy)), np.median(step) ** 2) / np.pi))
+    return out + [radius * np.c_[np.cos(t), np.sin(t)]]
 
 
 def _signed_area(p: np.ndarray) -> float:
@@ -475,6 +482,35 @@ def _split_triangle(t: list[int], m: list[int | None]) -> list[list[int]]:
     return [[x, j, y], [i, x, y], [i, y, k]]
 
 
+def _faired(mesh: Mesh, adj: csr_matrix, fill_loop: np.ndarray, tri: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """The cover's vertices ``P`` (rim first) with the inner ones placed so that the umbrella Laplacian of the cover
+    and its rim is least (thin plate, the rim and the ring of mesh vertices outside it held): the cover leaves the rim
+    along the surface's tangents and bends as it does, where neither a height field nor crease planes describe it."""
+    n_loop, n_all = len(fill_loop), len(P)
+    if n_all == n_loop:
+        return P
+    sub = adj[fill_loop].tocoo()  # the rim's edges in the mesh: to other rim vertices and to the ring outside
+    outer = np.setdiff1d(sub.col, fill_loop)
+    where = np.full(len(mesh.vertices), -1, dtype=np.int64)
+    where[fill_loop] = np.arange(n_loop)
+    where[outer] = n_all + np.arange(len(outer))
+    e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]], np.c_[sub.row, where[sub.col]]])
+    n = n_all + len(outer)
+    A = coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    A = ((A + A.T) > 0).astype(float)
+    deg = np.asarray(A.sum(axis=1)).ravel()
+    rows = np.arange(n_all)  # the cover's and the rim's vertices: their whole neighbourhood is known
+    L = (csr_matrix((np.ones(n_all), (rows, rows)), shape=(n_all, n)) - A[rows].multiply(1.0 / deg[rows, None])).tocsc()
+    free = np.arange(n_loop, n_all)
+    fixed = np.r_[np.arange(n_loop), np.arange(n_all, n)]
+    X = np.vstack([P, mesh.vertices[outer]])
+    Lf, Lk = L[:, free], L[:, fixed]
+    out = P.copy()
+    normal = (Lf.T @ Lf).tocsc()  # the least-squares normal equations: sparse, a few thousand unknowns at most
+    out[n_loop:] = np.asarray(spsolve(normal, -(Lf.T @ (Lk @ X[fixed])))).reshape(-1, 3)
+    return out
+
+
 def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np.ndarray] | None:
     """New vertices and triangles (indices into ``[mesh vertices; new]``) closing ``loop``; None if it cannot."""
     V = mesh.vertices
@@ -515,9 +551,15 @@ def _fill(mesh: Mesh, loop: np.ndarray, adj: csr_matrix) -> tuple[np.ndarray, np
         # rim exactly (its misfit there carried inward harmonically)
         q = _quadric(local[ring, :2], local[ring, 2])
         xyz[:, 2] = q(xyz[:, :2]) + _harmonic(tri, n_loop, n_all, rim[:, 2] - q(rim[:, :2]))
+    else:  # wrapped round a shaft or a blend's bend: a thin plate from the rim and the ring outside it
+        xyz = (_faired(mesh, adj, fill_loop, tri, c + xyz @ axes) - c) @ axes.T
     new = c + xyz[n_loop:] @ axes
     index = np.r_[fill_loop, len(V) + np.arange(len(new))]
     return new, index[tri]
+
+
+def _area(V: np.ndarray, tri: np.ndarray) -> float:
+    return 0.5 * float(np.linalg.norm(np.cross(V[tri[:, 1]] - V[tri[:, 0]], V[tri[:, 2]] - V[tri[:, 0]]), axis=1).sum())
 
 
 def _outward(mesh: Mesh) -> Mesh:
@@ -557,6 +599,10 @@ def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
             log.info("a hole of %d rim vertices could not be triangulated on its plane; left open", len(loop))
             continue
         new, tri = got
+        cover = _area(np.vstack([mesh.vertices, new]), tri)
+        if cover > COVER_BULGE * area:
+            log.info("a hole's cover came out %.3g times the area its rim encloses; left open", cover / area)
+            continue
         tri = np.where(tri >= len(mesh.vertices), tri - len(mesh.vertices) + count, tri)
         verts.append(new)
         tris.append(tri)
