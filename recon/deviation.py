@@ -394,7 +394,8 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
 def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,
               samples: int | None = None, rng: np.random.Generator | None = None,
               names: Sequence[str] | None = None,
-              progress: Callable[[int, int, str], None] | None = None) -> DeviationReport:
+              progress: Callable[[int, int, str], None] | None = None,
+              measured: npt.ArrayLike | None = None) -> DeviationReport:
     """Distances from a mesh to a B-rep and back, overall and per face.
 
     Parameters
@@ -417,6 +418,10 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
     progress : callable(done, total, what), optional
         Told the mesh points measured to the B-rep, then the samples of the B-rep measured to the mesh
         (:func:`mesh_distance`).
+    measured : (n,) bool, optional
+        The mesh points measured to the B-rep (default all): a closed hole's added vertices are not the user's
+        (:func:`recon.mesh.close_holes`); the others get NaN and nearest face -1. The B-rep is measured back to
+        every triangle, the added ones too: a face over a closed hole lies on its cover, not off the mesh.
 
     Returns
     -------
@@ -448,11 +453,15 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
         raise InputError(f"names: {len(names)} names for a shape of {len(brep.faces)} faces")
 
     diagonal = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    signed, nearest, _ = brep.signed_distance(v, progress=progress)
+    mine = np.ones(len(v), dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
+    if mine.shape != (len(v),):
+        raise InputError(f"measured: expected a ({len(v)},) bool mask, got shape {mine.shape}")
+    signed, nearest = np.full(len(v), np.nan), np.full(len(v), -1, dtype=np.int64)
+    signed[mine], nearest[mine], _ = brep.signed_distance(v[mine], progress=progress)
     notes = []
-    lost = int((~np.isfinite(signed)).sum())
+    lost = int((~np.isfinite(signed[mine])).sum())
     if lost:
-        notes.append(f"{lost} of {len(v)} mesh points found no face to measure to; they are left out")
+        notes.append(f"{lost} of {int(mine.sum())} mesh points found no face to measure to; they are left out")
     log.info("mesh → shape: %d points, max |d| %.4g", len(v), np.nanmax(np.abs(signed)) if lost < len(v) else np.nan)
 
     # The percentiles are over area-uniform points only (shares of the area, as in `model_deviation`): the
