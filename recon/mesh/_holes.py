@@ -171,7 +171,8 @@ def _frame(points: np.ndarray, order_sign: float) -> tuple[np.ndarray, np.ndarra
     vec = 0.5 * np.cross(p, np.roll(p, -1, axis=0)).sum(axis=0)
     area = float(np.linalg.norm(vec))
     n = order_sign * vec / max(area, 1e-300)
-    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    helper = [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0]  # an axis not near n: the cross stays long
+    e1 = np.cross(n, helper)
     e1 /= np.linalg.norm(e1)
     return c, np.stack([e1, np.cross(n, e1), n]), area
 
