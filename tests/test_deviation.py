@@ -466,3 +466,26 @@ def test_surface_samples_of_faces_without_triangles_are_empty():
     brep._faces = []  # what BrepDistance holds when no face could be triangulated or sampled
     points, face = brep.surface_samples(100)
     assert points.shape == (0, 3) and face.shape == (0,) and face.dtype == np.int64
+
+
+def test_pieces_cover_the_same_area_with_the_largest_cut_first():
+    # The slivers are cut (the surface and its area unchanged) until no piece's radius exceeds twice the side of the
+    # median triangle's square, the budget allowing: the largest radius is what loosens mesh_distance's bounds.
+    from recon.deviation import _pieces
+
+    v, f = _sliver_box_beside_a_fine_one()
+    tri = v[f]
+
+    def areas(t):
+        return 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1)
+
+    pieces = _pieces(tri)
+    assert areas(pieces).sum() == pytest.approx(areas(tri).sum(), rel=1e-12)
+    def radius(t):
+        return np.linalg.norm(t - t.mean(axis=1, keepdims=True), axis=2).max(axis=1)
+
+    r, budget, target = radius(pieces), 4 * len(tri) + 10_000, 2.0 * np.sqrt(np.median(areas(tri)))
+    assert len(pieces) <= budget
+    assert r.max() <= radius(tri).max() / 4  # the box's 40-long slivers are cut
+    # stopped at the target, or where cutting the next largest (within 1/√2 of the largest) would pass the budget
+    assert r.max() <= target or len(pieces) + (r > max(target, r.max() / np.sqrt(2))).sum() > budget
