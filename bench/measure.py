@@ -381,15 +381,20 @@ def _against_truth(conv, row: dict, true_labels_input, true_types, true_step, no
     if true_labels is not None:
         from recon.decompose import face_recovery
 
-        areas = conv.mesh.face_areas
-        rec = face_recovery(conv.labels, true_labels, areas)
+        # on the input's triangles: those recon added to close a hole (source_face -1) have no true label
+        mine = conv.mesh.source_face >= 0
+        areas, labels, true_labels = conv.mesh.face_areas[mine], conv.labels[mine], true_labels[mine]
+        rec = face_recovery(labels, true_labels, areas)
         row["recovered"], row["mean_iou"] = rec.recovered, rec.mean_iou
-        drec = face_recovery(np.asarray(conv.decomposition.labels), true_labels, areas)
+        dec_labels = np.asarray(conv.decomposition.labels)
+        drec = face_recovery(dec_labels[mine] if len(dec_labels) == len(mine) else dec_labels, true_labels, areas)
         row["dec_recovered"], row["dec_mean_iou"] = drec.recovered, drec.mean_iou
-        row["type_agreement"] = type_agreement(conv.labels, true_labels, areas, _our_face_types(conv), true_types)
+        row["type_agreement"] = type_agreement(labels, true_labels, areas, _our_face_types(conv), true_types)
     if true_step is not None:
         try:
-            dev = deviation(factor * conv.mesh.vertices, conv.mesh.faces, true_step)
+            holes = conv.extra.get("holes")  # the input's vertices only: not those added to close a hole
+            dev = deviation(factor * conv.mesh.vertices, conv.mesh.faces, true_step, measured=None if holes is None
+                            else np.arange(len(conv.mesh.vertices)) < holes.input_vertices)
             row.update(_stats_pct(dev.mesh_to_shape.to_json(), "true_m2s"))
             row.update(_stats_pct(dev.shape_to_mesh.to_json(), "true_s2m"))
         except Exception as err:

@@ -20,6 +20,7 @@ from collections.abc import Callable, Sequence
 import logging
 import os
 import dataclasses
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -179,26 +180,34 @@ def _check_mesh(vertices, faces) -> tuple[np.ndarray, np.ndarray]:
     return v, f.astype(np.int64)
 
 
-def _pieces(tri: np.ndarray, *, levels: int = 5) -> np.ndarray:
-    """Triangles ``(m, 3, 3)`` with the large ones split 1 → 4 at edge midpoints, up to ``levels`` times.
+def _pieces(tri: np.ndarray, *, levels: int = 10) -> np.ndarray:
+    """Triangles ``(m, 3, 3)`` with the long ones cut in two at the midpoint of their longest edge, up to ``levels``
+    times, until their centroid–vertex radius is at most twice the side of a square of the median triangle's area.
 
-    The union is the same surface, so the distance to it is unchanged; what shrinks is the largest
-    centroid–vertex distance, which is what loosens the candidate bound of :func:`mesh_distance` on meshes
-    mixing long CAD slivers with small triangles. At most about 4 m pieces are made.
+    The union is the same surface, so the distance to it is unchanged; what shrinks is the radius, which is what
+    bounds a piece's distance from its centroid's in :func:`mesh_distance`. A CAD export's slivers (a fan of strips
+    across a face, each as long as the face) have radii near the face's size but the area of a strip: cut to a few
+    times the median's side, far fewer samples need step 2's wide search. An even mesh's triangles are not cut (their
+    radius is about 0.9 × that side). At most about 16 m pieces are made.
     """
     def radius(t):
         return np.linalg.norm(t - t.mean(axis=1, keepdims=True), axis=2).max(axis=1)
 
     r = radius(tri)
-    target = max(2.0 * float(np.median(r)), float(r.max()) / 2**levels)
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    target = max(2.0 * float(np.sqrt(np.median(area))), float(r.max()) / 2**levels)
     keep, big = [tri[r <= target]], tri[r > target]
-    budget = 4 * len(tri) + 10_000
-    for _ in range(levels):
-        if not len(big) or sum(map(len, keep)) + 4 * len(big) > budget:
+    budget = 16 * len(tri) + 10_000
+    for _ in range(2 * levels):  # a sliver's radius halves in about two cuts
+        if not len(big) or sum(map(len, keep)) + 2 * len(big) > budget:
             break
-        a, b, c = big[:, 0], big[:, 1], big[:, 2]
-        ab, bc, ca = 0.5 * (a + b), 0.5 * (b + c), 0.5 * (c + a)
-        big = np.concatenate([np.stack(t, axis=1) for t in ((a, ab, ca), (ab, b, bc), (ca, bc, c), (ab, bc, ca))])
+        # the longest edge a→b of each, opposite corner c: cut at the midpoint m into (a, m, c) and (m, b, c)
+        e = np.stack([np.linalg.norm(big[:, (k + 1) % 3] - big[:, k], axis=1) for k in range(3)], axis=1)
+        k = np.argmax(e, axis=1)
+        rows = np.arange(len(big))
+        a, b, c = big[rows, k], big[rows, (k + 1) % 3], big[rows, (k + 2) % 3]
+        mid = 0.5 * (a + b)
+        big = np.concatenate([np.stack((a, mid, c), axis=1), np.stack((mid, b, c), axis=1)])
         r = radius(big)
         keep.append(big[r <= target])
         big = big[r > target]
@@ -367,10 +376,12 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
         q = p[i]
         for members, r, tree in groups:
             lists = tree.query_ball_point(q, best[i] + r + slack)
-            rows = np.repeat(np.arange(len(i)), [len(x) for x in lists])
+            lengths = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
+            rows = np.repeat(np.arange(len(i)), lengths)
             if not len(rows):
                 continue
-            cols = members[np.concatenate([np.asarray(x, dtype=np.int64) for x in lists])]
+            # (flattened in one pass: an array per point cost more than the distances on a CAD export's samples)
+            cols = members[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=len(rows))]
             near = np.linalg.norm(q[rows] - centre[cols], axis=1) - radius[cols] <= best[i][rows] + slack
             rows, cols = rows[near], cols[near]
             sub = best[i]
@@ -383,7 +394,8 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: 
 def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,
               samples: int | None = None, rng: np.random.Generator | None = None,
               names: Sequence[str] | None = None,
-              progress: Callable[[int, int, str], None] | None = None) -> DeviationReport:
+              progress: Callable[[int, int, str], None] | None = None,
+              measured: npt.ArrayLike | None = None) -> DeviationReport:
     """Distances from a mesh to a B-rep and back, overall and per face.
 
     Parameters
@@ -406,6 +418,10 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
     progress : callable(done, total, what), optional
         Told the mesh points measured to the B-rep, then the samples of the B-rep measured to the mesh
         (:func:`mesh_distance`).
+    measured : (n,) bool, optional
+        The mesh points measured to the B-rep (default all): a closed hole's added vertices are not the user's
+        (:func:`recon.mesh.close_holes`); the others get NaN and nearest face -1. The B-rep is measured back to
+        every triangle, the added ones too: a face over a closed hole lies on its cover, not off the mesh.
 
     Returns
     -------
@@ -437,11 +453,15 @@ def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_
         raise InputError(f"names: {len(names)} names for a shape of {len(brep.faces)} faces")
 
     diagonal = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
-    signed, nearest, _ = brep.signed_distance(v, progress=progress)
+    mine = np.ones(len(v), dtype=bool) if measured is None else np.asarray(measured, dtype=bool)
+    if mine.shape != (len(v),):
+        raise InputError(f"measured: expected a ({len(v)},) bool mask, got shape {mine.shape}")
+    signed, nearest = np.full(len(v), np.nan), np.full(len(v), -1, dtype=np.int64)
+    signed[mine], nearest[mine], _ = brep.signed_distance(v[mine], progress=progress)
     notes = []
-    lost = int((~np.isfinite(signed)).sum())
+    lost = int((~np.isfinite(signed[mine])).sum())
     if lost:
-        notes.append(f"{lost} of {len(v)} mesh points found no face to measure to; they are left out")
+        notes.append(f"{lost} of {int(mine.sum())} mesh points found no face to measure to; they are left out")
     log.info("mesh → shape: %d points, max |d| %.4g", len(v), np.nanmax(np.abs(signed)) if lost < len(v) else np.nan)
 
     # The percentiles are over area-uniform points only (shares of the area, as in `model_deviation`): the

@@ -21,7 +21,7 @@ from .decompose import Decomposition, decompose
 from .errors import InputError, ReconError
 from ._progress import Count
 from ._tolerance import tolerance_for
-from .mesh import Mesh, SpikeReport, clean_mesh, load_mesh, move_spikes
+from .mesh import HoleReport, Mesh, SpikeReport, clean_mesh, close_holes, load_mesh, move_spikes
 from ._working import working_copy
 from .segment import as_decomposition, coplanar_pairs, exact_faces, exact_tessellation, plane_atoms, roundoff, segment
 
@@ -53,9 +53,11 @@ class Conversion:
         Strict-JSON figures: faces by type, deviation, validity, time per stage, per-face records, and the
         ``verdict`` of the acceptance rules (:mod:`recon.verdict`).
     mesh : Mesh
+        The cleaned mesh, with its small holes closed over when it had some (``extra["holes"]``, a
+        :class:`recon.mesh.HoleReport`, marks the added triangles: they come after the input's).
     decomposition : Decomposition
     labels : (m,) int
-        The face label of every cleaned triangle (the decomposition with sharp features dissolved).
+        The face label of every triangle of ``mesh`` (the decomposition with sharp features dissolved).
     fits : dict of int → SurfaceFit
     brep : recon.brep.BrepResult
     """
@@ -138,6 +140,7 @@ def convert(
     t = time.perf_counter()
     step("load", 0.0)
     mesh, spikes = _move_spikes(_as_mesh(mesh))  # a scanner's outliers, before anything measures the mesh
+    user, (mesh, holes) = mesh, close_holes(mesh)  # an occluded scan's small holes, covered by the faces around them
     times["load"] = time.perf_counter() - t
     step("load", 1.0)
 
@@ -190,8 +193,8 @@ def convert(
         step("deviation", 0.0)
         try:
             with occ_messages():
-                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=names,
-                              progress=items("deviation"))
+                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=names, progress=items("deviation"),
+                              measured=np.arange(len(mesh.vertices)) < holes.input_vertices)
         except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
             log.warning("deviation not measured: %s", err)
             dev_error = str(err)
@@ -208,7 +211,21 @@ def convert(
             f"{len(spikes.vertices)} vertices stood off the surface as spikes (up to "
             f"{report['mesh']['spikes']['max_moved_pct']:.2g} % of the diagonal) and were moved onto their "
             "neighbours' surface; the deviation is measured to where they were moved")
-    return Conversion(report, mesh, dec, labels, fits, brep, extra={} if work is None else {"working_copy": work})
+    extra: dict = {} if work is None else {"working_copy": work}
+    if holes.closed:  # the mesh returned and judged (also in the written file) is the closed one
+        _note_holes(report, user, holes)
+        extra["holes"] = holes
+    return Conversion(report, mesh, dec, labels, fits, brep, extra=extra)
+
+
+def _note_holes(report: dict, user: Mesh, holes: HoleReport) -> None:
+    """The report's entry and warning for the holes :func:`recon.mesh.close_holes` closed over."""
+    report["mesh"]["triangles"] = int(len(user.faces))  # the user's: the added ones are counted under "holes"
+    report["mesh"]["holes"] = holes.to_json(user.area)
+    report["warnings"].append(
+        f"{holes.closed} of {holes.loops} holes in the mesh were closed over by the faces around them "
+        f"({report['mesh']['holes']['area_added_pct']:.2g} % of its area); the deviation mesh→shape is measured on "
+        "the input's vertices only, shape→mesh to the input's triangles and the cover over the holes")
 
 
 def _as_mesh(mesh) -> Mesh:

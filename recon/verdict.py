@@ -4,8 +4,8 @@ A conversion is good (``recon convert`` exits 0) only when every rule holds; the
 each rule with its figure, its limit and the faces where it fails. T is the tolerance the run used.
 
 * ``solid``: the written file, read back from disk, is one valid closed solid (type SOLID, BRepCheck valid, closed
-  shell, no free edge, volume > 0; a mesh of several disjoint bodies gives a compound of such solids). For an open mesh
-  (it has boundary edges) a valid shell is the right answer. An ``.stl`` output is read back as a mesh: watertight,
+  shell, no free edge, volume > 0; a mesh of several disjoint bodies gives a compound of such solids). For a mesh still
+  open after its small holes were closed over (:func:`recon.mesh.close_holes`) a valid shell is the right answer. An ``.stl`` output is read back as a mesh: watertight,
   consistently wound, positive volume.
 * ``coverage``: every part of the mesh has a face.
 * ``overlap``: no closed shell of the mesh crosses another or lies inside another. Every closed shell becomes a solid

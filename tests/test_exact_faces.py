@@ -64,12 +64,13 @@ def test_a_notch_drawn_as_three_quads_is_its_cylinder_not_a_sphere_nor_planes():
     assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 2, "plane": 7}
 
 
-@pytest.mark.parametrize("seed", [6, 19, 20, 35, 36, 56])
+@pytest.mark.parametrize("seed", [6, 19, 20, 35, 36, 56, 78])
 def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     """Parts whose faces the first seeds split or merged with a neighbour's strips: a slot's side with the end strips
     of its half-cylinders (36), cylinders along a torus (19), fillet chains (6), a cylinder drawn as a sphere (56), two
     counterbore arcs of three quads dropped as planes (20), a pocket rim's fillet tori drawn as ~30 bands each of
-    cones, cylinders and spheres (35: 88 faces of 35 before its bands were joined)."""
+    cones, cylinders and spheres (35: 88 faces of 35 before its bands were joined), a chamfered polygon prism whose
+    10 corner faces are one triangle each (78: the path gave up, taking them for pieces of a free-form face)."""
     from bench.corpus.truth import materialise
 
     truth = materialise(seed, "export", tmp_path)

@@ -28,6 +28,7 @@ from ._edges import fix_edges, shared_topology
 from ._faces import Reach, near_enough, orientation_vote
 from ._filling import FILLING_ATTEMPTS, FillingBudget
 from ._match import match_faces
+from ._planar import lift_planar_edges
 from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity, shape_validity
 from ._shell import assemble, mend_faces, whole_fixed
 from ._strategies import FaceJob, build_face
@@ -109,6 +110,8 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     shape = assemble(faces, tolerance, open_mesh, warnings)
     mend_faces(shape, tolerance, warnings)
     shape, validity = _healed(shape, tolerance, warnings)
+    if lift_planar_edges(shape, tolerance):  # (what a STEP reader makes of a plane: bench/brep.md, read-back)
+        validity = None
     # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
     records = match_faces(records, _faces_of(shape), network)
     if validity is None:  # (the solid's was measured already: BRepCheck and the volume, a second time for nothing)

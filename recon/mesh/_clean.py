@@ -173,7 +173,8 @@ def input_labels(mesh: Mesh, labels) -> np.ndarray:
             f"got {labels.dtype} array of shape {labels.shape}"
         )
     out = np.full(mesh.n_input_faces, -1, dtype=np.int64)
-    out[mesh.source_face] = labels
+    kept = mesh.source_face >= 0  # (a triangle added to close a hole has no input triangle: -1)
+    out[mesh.source_face[kept]] = labels[kept]
     return out
 
 

@@ -150,7 +150,7 @@ class Mesh:
         outward (positive signed volume) where the component is closed.
     source_face : (m,) int
         For every triangle, its index in the input's triangle order (ascending: kept triangles keep
-        their input order).
+        their input order); -1 for a triangle added to close a hole (:func:`recon.mesh.close_holes`).
     n_input_faces : int
     component : (m,) int
         Edge-connected body of each triangle, numbered in order of each body's first triangle.

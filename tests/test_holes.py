@@ -1,0 +1,128 @@
+"""Holes (an occluded scan's missing patches): small boundary loops closed over, open sides left open."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from recon.mesh import boundary_loops, clean_mesh, close_holes
+
+
+def _sphere(sigma: float = 0.0, seed: int = 0) -> trimesh.Trimesh:
+    """The unit sphere, 5,120 triangles (edge h ≈ 0.075), with noise σ along the radius."""
+    s = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
+    v = s.vertices * (1.0 + np.random.default_rng(seed).normal(0.0, sigma, (len(s.vertices), 1)))
+    return trimesh.Trimesh(v, s.faces, process=False)
+
+
+#: Two caps removed: 2.5 % and 1.5 % of the sphere's area, a share an occluded scan misses (issue 23: 1-3 %).
+CAPS = ((np.array([0.0, 0.0, 1.0]), 0.95), (np.array([1.0, 0.0, 0.0]), 0.97))
+
+
+def _holed(s: trimesh.Trimesh):
+    centre = s.triangles_center / np.linalg.norm(s.triangles_center, axis=1, keepdims=True)
+    cut = np.zeros(len(s.faces), dtype=bool)
+    for axis, cos in CAPS:
+        cut |= centre @ axis > cos
+    return clean_mesh(s.vertices, s.faces[~cut]), float(s.area_faces[cut].sum())
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.002])
+def test_sphere_holes_closed_on_the_sphere(sigma):
+    mesh, removed = _holed(_sphere(sigma))
+    assert len(boundary_loops(mesh)) == 2
+    out, rep = close_holes(mesh)
+    assert (rep.loops, rep.closed) == (2, 2)
+    assert out.report.boundary_edges == 0 and out.report.non_manifold_edges == 0
+    assert (out.edge_face_count == 2).all()  # watertight and manifold
+    # the input's arrays are a prefix of the result's: its triangles keep their indices
+    np.testing.assert_array_equal(out.vertices[: len(mesh.vertices)], mesh.vertices)
+    np.testing.assert_array_equal(out.faces[: len(mesh.faces)], mesh.faces)
+    assert rep.added.sum() == len(out.faces) - len(mesh.faces) and not rep.added[: len(mesh.faces)].any()
+    h = mesh.mean_edge_length
+    # a quadric fitted over the hole and FIT_RINGS rings round it (radius ρ ≈ 0.31 + 3h) misses the sphere by at most
+    # its quartic term ρ⁴/8; the fitted ring's noise averages down, a vertex's own noise is at most 3σ
+    rho = np.sqrt(1 - CAPS[0][1] ** 2) + 3 * h
+    off = np.abs(np.linalg.norm(out.vertices[rep.input_vertices:], axis=1) - 1.0)
+    assert off.max() <= rho**4 / 8 + 3 * sigma
+    # area: both triangulate the same caps at the same h; a cover off the sphere by δ changes its area by ≤ 2δ/R
+    # (the area of a sphere of radius 1 + δ), and each triangulation's chords cut ≤ h²/4 of it
+    assert abs(rep.area_added - removed) <= (2 * off.max() + h**2 / 4) * removed + 3 * sigma * removed
+    assert out.volume > 0  # outward, as the input was
+    assert abs(out.volume - 4 / 3 * np.pi) <= 0.01 * 4 / 3 * np.pi  # the icosphere's own chord deficit is 0.5 %
+
+
+def test_box_without_top_left_open():
+    box = trimesh.creation.box((10.0, 10.0, 10.0))
+    for _ in range(3):
+        box = box.subdivide()
+    mesh = clean_mesh(box.vertices, box.faces[box.triangles_center[:, 2] < 4.99])
+    out, rep = close_holes(mesh)
+    assert (rep.loops, rep.closed) == (1, 0)
+    assert out is mesh  # nothing closed: the mesh as it was (a shell is the right answer)
+
+
+@pytest.mark.parametrize("sigma", [0.0, 0.02])
+@pytest.mark.parametrize("centre", [(0.0, 5.0, 5.0), (5.0, 5.0, 5.0)], ids=["edge", "corner"])
+def test_box_hole_across_an_edge_or_corner_lands_on_the_box(centre, sigma):
+    """A patch cut across the box's top edge (two faces) or a corner (three) is covered by the faces' extensions to
+    their crease: the cover lies on the box to within the noise (3σ: the rings' planes average it down), watertight."""
+    box = trimesh.creation.box((10.0, 10.0, 10.0))
+    for _ in range(4):
+        box = box.subdivide()
+    v = box.vertices + np.random.default_rng(1).normal(0.0, sigma, box.vertices.shape)
+    cut = np.linalg.norm(box.triangles_center - np.asarray(centre), axis=1) < 1.5
+    mesh = clean_mesh(v, box.faces[~cut])
+    out, rep = close_holes(mesh)
+    assert (rep.loops, rep.closed) == (1, 1)
+    assert (out.edge_face_count == 2).all()
+    new = out.vertices[rep.input_vertices:]
+    inside = np.min(5.0 - np.abs(new), axis=1)  # distance to the nearest face for a point inside the box
+    outside = np.max(np.abs(new) - 5.0, axis=1)  # (at least) the distance for one outside
+    off = np.where(outside > 0, outside, inside)
+    assert np.abs(off).max() <= 3 * sigma + 1e-9
+
+
+def test_closed_mesh_untouched_and_deterministic():
+    s = _sphere()
+    mesh = clean_mesh(s.vertices, s.faces)
+    out, rep = close_holes(mesh)
+    assert out is mesh and rep.closed == 0 and rep.loops == 0
+    holed, _ = _holed(_sphere(0.002))
+    a, ra = close_holes(holed)
+    b, rb = close_holes(holed)
+    np.testing.assert_array_equal(a.vertices, b.vertices)
+    np.testing.assert_array_equal(a.faces, b.faces)
+    np.testing.assert_array_equal(ra.added, rb.added)
+
+
+def test_inward_open_mesh_closed_outward():
+    """An open mesh wound inward (the cleaning keeps an open part's winding) comes out closed and outward."""
+    s = _sphere()
+    mesh, _ = _holed(trimesh.Trimesh(s.vertices, s.faces[:, ::-1], process=False))
+    assert mesh.volume < 0
+    out, rep = close_holes(mesh)
+    assert rep.closed == 2 and (out.edge_face_count == 2).all() and out.volume > 0
+
+
+def test_convert_closes_a_hole_and_measures_the_input_only():
+    """recon.convert on a noisy box with a hole across an edge: a valid closed solid, the hole in the report, the
+    deviation mesh→shape counted over the input's vertices only, and the verdict's rules all hold."""
+    from recon import convert
+
+    box = trimesh.creation.box((10.0, 10.0, 10.0))
+    for _ in range(4):
+        box = box.subdivide()
+    v = box.vertices + np.random.default_rng(2).normal(0.0, 0.01, box.vertices.shape)
+    cut = np.linalg.norm(box.triangles_center - [0.0, 5.0, 5.0], axis=1) < 1.5
+    mesh = clean_mesh(v, box.faces[~cut])
+    conv = convert(mesh)
+    rep = conv.report
+    assert rep["mesh"]["holes"]["closed"] == 1 and rep["mesh"]["triangles"] == len(mesh.faces)
+    assert rep["validity"]["shape_type"] == "solid" and rep["validity"]["ok"]
+    assert rep["n_faces"] == 6
+    assert rep["deviation"]["mesh_to_shape"]["count"] == len(mesh.vertices)
+    assert conv.verdict.ok, conv.verdict
+    added = conv.extra["holes"].added
+    assert len(conv.labels) == len(conv.mesh.faces) == len(added) and added.sum() > 0
