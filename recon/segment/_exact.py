@@ -24,6 +24,7 @@ from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_freeform import impossible_types
 from ._exact_merge import merge_curved
+from ._exact_strips import strip_faces
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
            "roundoff"]
@@ -545,6 +546,8 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     fits: dict = {}
     taken = np.zeros(len(at.tris), bool)
     curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
+    # runs of plane strips no seed explained (a cylinder one quad wide between fillets: seed 15), then merged as bands
+    curved = strip_faces(at, curved, eps, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None))
     # bands of one torus (two latitude circles lie on a cone, a cylinder or a sphere) joined when one surface holds
     # them; the joined face then reclaims the 2-triangle planes between its bands, which may join more (seed 35)
     for _ in range(MERGE_ROUNDS):
