@@ -126,3 +126,16 @@ def test_convert_closes_a_hole_and_measures_the_input_only():
     assert conv.verdict.ok, conv.verdict
     added = conv.extra["holes"].added
     assert len(conv.labels) == len(conv.mesh.faces) == len(added) and added.sum() > 0
+
+
+def test_triangle_soup_left_open():
+    # An STL whose corners were never welded (or jittered apart) is a soup: every triangle a piece whose whole rim is
+    # a loop. A hole is small against its own piece, so none is covered (covering each made one closed pillow per
+    # triangle, and the decomposition one part with no boundary: exit 3 where recon gave a result before).
+    s = _sphere()
+    tri = np.asarray(s.vertices)[np.asarray(s.faces)]
+    corners = tri.reshape(-1, 3) + np.random.default_rng(0).normal(scale=1e-3, size=(len(tri) * 3, 3))
+    mesh = clean_mesh(corners, np.arange(len(corners)).reshape(-1, 3))
+    assert len(boundary_loops(mesh)) == len(mesh.faces)  # a soup: a loop per triangle
+    closed, report = close_holes(mesh)
+    assert closed is mesh and report.closed == 0

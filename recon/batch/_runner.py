@@ -88,7 +88,8 @@ def _why(report: dict) -> str:
     failed = [r for r in report["verdict"]["rules"] if r["ok"] is False]
     words = "; ".join(f"{r['rule']}: {r['detail'] or r['value']}"
                       + (f" ({', '.join(r['faces'][:3])})" if r["faces"] else "") for r in failed)
-    return _one_line(f"not good: {words}", 200)
+    # the rules' names first: the details of several failed rules pass the line's length, and get cut
+    return _one_line(f"not good: {', '.join(r['rule'] for r in failed)}: {words}", 200)
 
 
 def main() -> None:

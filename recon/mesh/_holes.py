@@ -587,12 +587,15 @@ def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
     if not loops:
         return mesh, nothing
     total = mesh.area
+    # a hole is small against its own piece too: a triangle soup's every triangle is a piece whose rim is a loop
+    piece_area = np.bincount(mesh.component, weights=mesh.face_areas)
     verts, tris, comps, closed = [mesh.vertices], [mesh.faces], [mesh.component], 0
     count, adj = len(mesh.vertices), _adjacency(mesh)
     for loop in loops:
         _, axes, area = _frame(mesh.vertices[loop[::-1]], 1.0)
         extent = float(np.linalg.norm(np.ptp(mesh.vertices[loop], axis=0)))
-        if area > HOLE_AREA_SHARE * total or (extent > SMALL_EXTENT * mesh.diagonal
+        piece = piece_area[mesh.component[mesh.vertex_faces[int(loop[0])][0]]]
+        if area > HOLE_AREA_SHARE * min(total, piece) or (extent > SMALL_EXTENT * mesh.diagonal
                                               and _surrounded(mesh, loop, axes[2]) < SURROUND_REACH):
             continue
         got = _fill(mesh, loop, adj)
