@@ -187,35 +187,51 @@ def convert(
 
     dev, dev_error = None, None
     if deviation:
-        from .deviation import deviation as measure
-
         t = time.perf_counter()
         step("deviation", 0.0)
-        try:
-            with occ_messages():
-                dev = measure(mesh.vertices, mesh.faces, brep.occ, names=names, progress=items("deviation"),
-                              measured=np.arange(len(mesh.vertices)) < holes.input_vertices)
-        except ReconError as err:  # the B-rep is written all the same; the report says why it has no deviation
-            log.warning("deviation not measured: %s", err)
-            dev_error = str(err)
+        dev, dev_error = _deviation(mesh, brep, names, holes.input_vertices, items("deviation"))
         times["deviation"] = time.perf_counter() - t
         step("deviation", 1.0)
 
     report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
-    report.update({} if work is None else {"working_copy": work.to_json()})  # what the stages up to the B-rep saw
     if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
         report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
+    extra = _note_mesh_changes(report, user, spikes, holes, work)
+    return Conversion(report, mesh, dec, labels, fits, brep, extra=extra)
+
+
+def _deviation(mesh: Mesh, brep, names, input_vertices: int, progress) -> tuple[Any, str | None]:
+    """The deviation stage: ``(report, None)``, or ``(None, why)`` when it could not be measured (the B-rep is written
+    all the same). Mesh→shape on the user's vertices only (a closed hole's cover is not a measurement)."""
+    from .brep._messages import occ_messages
+    from .deviation import deviation as measure
+
+    try:
+        with occ_messages():
+            return measure(mesh.vertices, mesh.faces, brep.occ, names=names, progress=progress,
+                           measured=np.arange(len(mesh.vertices)) < input_vertices), None
+    except ReconError as err:
+        log.warning("deviation not measured: %s", err)
+        return None, str(err)
+
+
+def _note_mesh_changes(report: dict, user: Mesh, spikes: SpikeReport, holes: HoleReport, work) -> dict:
+    """The report's entries and warnings for what recon did to the user's mesh before the stages (spikes moved, holes
+    closed, a working copy); returns the Conversion's ``extra`` (the copy, the holes' mask)."""
+    extra: dict = {}
+    if work is not None:  # what the stages up to the B-rep saw
+        report["working_copy"] = work.to_json()
+        extra["working_copy"] = work
     if len(spikes.vertices):
-        report["mesh"]["spikes"] = spikes.to_json(mesh.diagonal)
+        report["mesh"]["spikes"] = spikes.to_json(user.diagonal)
         report["warnings"].append(
             f"{len(spikes.vertices)} vertices stood off the surface as spikes (up to "
             f"{report['mesh']['spikes']['max_moved_pct']:.2g} % of the diagonal) and were moved onto their "
             "neighbours' surface; the deviation is measured to where they were moved")
-    extra: dict = {} if work is None else {"working_copy": work}
     if holes.closed:  # the mesh returned and judged (also in the written file) is the closed one
         _note_holes(report, user, holes)
         extra["holes"] = holes
-    return Conversion(report, mesh, dec, labels, fits, brep, extra=extra)
+    return extra
 
 
 def _note_holes(report: dict, user: Mesh, holes: HoleReport) -> None:
