@@ -238,20 +238,21 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(tmp_path, make_args, me
     assert set(tmp_path.iterdir()) == before
 
 
-def test_sphere_one_smooth_part_becomes_a_solid():
-    """A closed body that one smooth part covers has no edge to bound a face with (it raised BrepError). Cut in
-    two, it is two sphere faces on one seam loop; the vertices lie on the sphere, so the volume is 4/3 π r³."""
+def test_sphere_one_smooth_part_becomes_one_sphere_face():
+    """A closed body that one smooth part covers has no edge to bound a face with. A sphere bounds itself (its seam
+    and poles, as OpenCascade's own sphere): one face, as the true part has; the vertices lie on the sphere, so the
+    volume is 4/3 π r³."""
     from recon import convert
 
     mesh = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
     result = convert((mesh.vertices, mesh.faces), deviation=False)
     assert result.brep.validity.ok
-    assert result.report["faces_by_type"] == {"sphere": 2}
+    assert result.report["faces_by_type"] == {"sphere": 1}
     assert result.brep.validity.volume == pytest.approx(4 / 3 * np.pi * 1000.0, rel=1e-5)
 
 
-def test_closed_torus_becomes_a_solid_of_torus_faces():
-    """A torus wraps around both ways: one smooth part with no boundary, cut on a seam loop into torus faces.
+def test_closed_torus_becomes_one_torus_face():
+    """A torus wraps around both ways: one smooth part with no boundary, one face bounded by its own two seams.
     The vertices lie on the torus, so the volume is the torus's 2π² R r², not the polyhedron's."""
     from recon import convert
 
@@ -259,9 +260,21 @@ def test_closed_torus_becomes_a_solid_of_torus_faces():
     mesh = trimesh.creation.torus(major_radius=R, minor_radius=r, major_sections=64, minor_sections=24)
     result = convert((mesh.vertices, mesh.faces), deviation=False)
     assert result.brep.validity.ok
-    assert set(result.report["faces_by_type"]) == {"torus"}
+    assert result.report["faces_by_type"] == {"torus": 1}
     assert result.brep.validity.volume == pytest.approx(2 * np.pi**2 * R * r**2, rel=1e-5)
     assert abs(mesh.volume / (2 * np.pi**2 * R * r**2) - 1) > 1e-3  # (the polyhedron's volume would fail)
+
+
+def test_sphere_meshed_inside_out_is_one_outward_face():
+    """A sphere meshed inside out (every triangle wound the wrong way) is turned round with the mesh: one sphere face
+    whose normal points out, a valid solid of volume +4/3 π r³ (a face left facing inward would give −)."""
+    from recon import convert
+
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=5.0)
+    result = convert((mesh.vertices, mesh.faces[:, ::-1]), deviation=False)
+    assert result.report["faces_by_type"] == {"sphere": 1}
+    assert result.brep.validity.ok
+    assert result.brep.validity.volume == pytest.approx(4 / 3 * np.pi * 125.0, rel=1e-5)
 
 
 def test_filleted_box_under_light_noise_has_its_true_faces():

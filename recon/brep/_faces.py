@@ -28,6 +28,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Wire
 from .._parallel import Failure, FailureKind, isolated
 from ..network import CurveNetwork, NetworkGeometry
 from .._tolerance import SMOOTH_TURN
+from ..fit import CLOSED_KINDS
 from ..errors import BrepError
 from . import _serial  # noqa: F401  (faces cross the pipe from a child as BREP bytes)
 from ._edges import (
@@ -191,6 +192,21 @@ def face_fixer(model: SurfaceModel, wires, precision: float):
     fix.SetPrecision(PRECISION_SHARE * precision)
     fix.SetMaxTolerance(10.0 * precision)
     return fix
+
+
+def face_of_whole_surface(model: SurfaceModel, vote: int, *, precision: float):
+    """The face covering all of a sphere or torus, for a closed body one part covers (a part with no loop); its
+    normal turned to the mesh's outward one (``vote``). ``(face, area)``."""
+    if model.kind not in CLOSED_KINDS:
+        raise BrepError(f"a closed body one {model.kind} part covers has no edge to bound its face (only a whole "
+                        f"{' or '.join(CLOSED_KINDS)} closes on itself)")
+    mk = BRepBuilderAPI_MakeFace(model.geom, precision)
+    if not mk.IsDone():
+        raise BrepError(f"BRepBuilderAPI_MakeFace failed on the whole {model.kind} ({mk.Error()})")
+    face = mk.Face()
+    if not BRepCheck_Analyzer(face).IsValid():
+        raise BrepError(f"the whole {model.kind} face is not valid ({face_problems(face)})")
+    return (TopoDS.Face_s(face.Reversed()) if vote < 0 else face), face_area(face)
 
 
 def face_on_surface(model: SurfaceModel, loops: list[np.ndarray], edges, vote: int, context, *,

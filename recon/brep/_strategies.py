@@ -23,7 +23,7 @@ import numpy as np
 from .._parallel import time_limits_fired
 from ..network import CurveNetwork, NetworkGeometry
 from ..errors import BrepError
-from ._faces import Reach, face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
+from ._faces import Reach, face_of_whole_surface, face_on_copies, face_on_own_curves, face_on_own_edges, face_on_surface
 from ._filling import AREA_RATIO_WARNING, FILLING_TIMEOUT, FillingBudget, fallback_face
 from ._result import FaceRecord, FaceStatus
 from ._seam import face_with_seam_split
@@ -207,9 +207,30 @@ def _nearest_refused(job: FaceJob, refused: list, message: str, warnings: list) 
     return got
 
 
+def _whole(job: FaceJob, warnings: list) -> FaceRecord:
+    """The face of a part with no loop: a closed body it covers alone, which only its own closed surface bounds (no
+    edge to fill between, none to sew to)."""
+    message = _first_message(job)
+    try:
+        if job.model is None:
+            raise BrepError("it has no fitted surface")
+        face, area = face_of_whole_surface(job.model, job.vote, precision=job.tolerance)
+    except BrepError as err:
+        message = _join(message, str(err))
+        warnings.append(f"{job.name}: no face ({message})")
+        kind = job.model.kind if job.model is not None else "none"
+        return FaceRecord(job.part, job.name, job.kind, kind, FaceStatus.FAILED, 0.0, None, message)
+    if job.near:
+        warnings.append(_kept_poor(job, message))
+    status = FaceStatus.on_own_surface(job.fit_ok, sewn=False)
+    return FaceRecord(job.part, job.name, job.kind, job.model.kind, status, area, face, message)
+
+
 def build_face(job: FaceJob, warnings: list) -> FaceRecord:
     """The part's face by the first strategy of its order that gives one (``FAILED`` and no face if none does);
     what each says about the face is appended to ``warnings``."""
+    if not job.loops:
+        return _whole(job, warnings)
     order = ORDERS["own surface" if job.fit_ok or job.near else "filling first"]
     message = _first_message(job)
     got = _none(message)

@@ -7,7 +7,7 @@ from ._bspline import fit_bspline_surface
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ._select import ANALYTIC_FITTERS, MISFIT_SCALE, fit_surface, residual_scale
 from ._quickfit import quick_fit, surface_normals
-from ._geometry import (BSplineCurve, BSplineSurface, Circle, Cone, CurveKind, Cylinder, EdgeCurve, Line, Plane, Sphere,
+from ._geometry import (CLOSED_KINDS, BSplineCurve, BSplineSurface, Circle, Cone, CurveKind, Cylinder, EdgeCurve, Line, Plane, Sphere,
                         SurfaceKind, Torus)
 from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, MAD_TO_SIGMA, SURFACE_TYPES, CurveFit, SurfaceFit, deviation_stats,
                      within_tolerance)
@@ -15,6 +15,7 @@ from ._types import (ACCEPT_MAX_FACTOR, CURVE_TYPES, MAD_TO_SIGMA, SURFACE_TYPES
 __all__ = [
     "ACCEPT_MAX_FACTOR",
     "ANALYTIC_FITTERS",
+    "CLOSED_KINDS",
     "CURVE_TYPES",
     "MAD_TO_SIGMA",
     "MISFIT_SCALE",

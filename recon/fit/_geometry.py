@@ -21,7 +21,7 @@ from .._array import x_or_y_helper, row_norms, unit
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface
 
-__all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "SurfaceKind", "surface_from_params",
+__all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "SurfaceKind", "CLOSED_KINDS", "surface_from_params",
            "Line", "Circle", "BSplineCurve", "curve_from_params", "Surface", "Curve", "CurveKind", "EdgeCurve"]
 
 
@@ -40,6 +40,11 @@ class SurfaceKind(StrEnum):
     EXTRUSION = "extrusion"
     OFFSET = "offset"
     OTHER = "other"
+
+
+#: The surfaces closed in both directions: one face of them bounds a closed body alone, with no edge but its seams
+#: and poles (as OpenCascade's own sphere and torus).
+CLOSED_KINDS = (SurfaceKind.SPHERE, SurfaceKind.TORUS)
 
 
 def _perp(d: np.ndarray) -> np.ndarray:

@@ -56,7 +56,8 @@ class CurveNetwork:
     poly_ids : (p,) int
         Mesh vertex index of each polyline point.
     parts : (f,) int
-        Part ids that have a boundary, ascending.
+        Part ids, ascending; a part that has no boundary (a closed body one face covers: a whole sphere or torus)
+        has no loop.
     loops : (l,) int
         Signed edge references ``±(edge + 1)`` of all loops packed: ``+`` uses the edge in its stored
         direction. Loop ``j`` is ``loops[loop_offsets[j]:loop_offsets[j + 1]]``.
@@ -346,7 +347,8 @@ def _part_loops(edge_vertices, edge_parts, coords, offsets, vertices, faces, lab
     mean_normal = np.zeros((int(labels.max()) + 1, 3))
     np.add.at(mean_normal, labels, area_vec)
 
-    parts = np.array(sorted(p for p in by_part if p != OUTSIDE), dtype=np.int64)
+    # a part no edge bounds is a closed body one face covers (a whole sphere or torus): a part with no loop
+    parts = np.union1d(np.array(sorted(p for p in by_part if p != OUTSIDE), dtype=np.int64), np.unique(labels))
     loops: list[int] = []
     loop_offsets = [0]
     loop_part: list[int] = []

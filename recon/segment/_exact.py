@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FitError
-from ..fit import SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
+from ..fit import CLOSED_KINDS, SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_freeform import impossible_types
@@ -581,8 +581,10 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     bounded = np.zeros(len(fits), bool)
     cut = labels[pairs[:, 0]] != labels[pairs[:, 1]]
     bounded[labels[pairs[cut].ravel()]] = True
-    if not bounded.all():  # a closed face (a whole torus): the decomposition cuts it on a seam, this path does not
-        log.info("exact: a face with no boundary")
+    # a closed body one face covers is built on that face's own seams when it is a sphere or torus; any other such face
+    # has nothing to bound it: the decomposition cuts it
+    if any(not bounded[p] and fits[p].type not in CLOSED_KINDS for p in range(len(fits))):
+        log.info("exact: a face with no boundary on a surface that does not close on itself")
         return None
     single = _loose_singles(mesh, labels, fits)
     if single > SINGLE_SHARE * len(fits) + 2:

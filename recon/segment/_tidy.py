@@ -8,7 +8,7 @@ import logging
 import numpy as np
 import scipy.sparse as sp
 
-from ..fit import SurfaceFit, fit_plane
+from ..fit import CLOSED_KINDS, SurfaceFit, fit_plane
 from ..mesh import unique_first
 from ._context import CURVED, MIN_CORNER_VERTICES, MIN_FLAT_VERTICES, MIN_PART_VERTICES, SegmentContext, fit_parts
 from ._labels import absorb, coplanar_pieces, drawn_flat, split_disconnected, vertex_counts
@@ -115,8 +115,9 @@ def small_faces(labels: np.ndarray, small: np.ndarray, ctx: SegmentContext) -> t
 def cut_unbounded(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.ndarray:
     """Labels with every closed body that one label covers cut in two (``labels`` itself if there is none).
 
-    A face needs a boundary, and a closed body covered by one smooth part (a sphere, an ellipsoid, a coarse
-    free-form part) has none: no edge bounds it, and the B-rep has nothing to build on. Cutting the body by
+    A face needs a boundary, and a closed body covered by one smooth part (an ellipsoid, a coarse free-form part)
+    has none: no edge bounds it, and the B-rep has nothing to build on; only a sphere or torus fitted within
+    tolerance bounds itself (its seams and poles, :data:`recon.fit.CLOSED_KINDS`) and stays one face. Cutting the body by
     the plane through its centroid across its longest principal axis gives two parts sharing one loop, the
     least a closed surface needs (OpenCascade's own sphere has a seam); each half is fitted like any part.
     """
@@ -129,6 +130,9 @@ def cut_unbounded(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.nda
         tris = np.flatnonzero(body == b)
         if len(np.unique(labels[tris])) > 1:
             continue
+        fit = fits.get(int(labels[tris[0]]))
+        if fit is not None and fit.ok and fit.type in CLOSED_KINDS:
+            continue  # a whole sphere or torus is one face, bounded by its own seams (recon.brep)
         c = mesh.face_centroids[tris]
         w = mesh.face_areas[tris]
         centre = np.average(c, axis=0, weights=w)
