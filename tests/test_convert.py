@@ -265,6 +265,23 @@ def test_closed_torus_becomes_one_torus_face():
     assert abs(mesh.volume / (2 * np.pi**2 * R * r**2) - 1) > 1e-3  # (the polyhedron's volume would fail)
 
 
+def test_noisy_sphere_is_one_sphere_face():
+    """The same under noise (σ = 0.1 % of the diameter along the normals), through the decomposition rather than the
+    exact-vertex path: the one part's sphere fit is within tolerance, so the body is not cut; one sphere face whose
+    radius is the true one to well within σ."""
+    from recon import convert
+
+    mesh = trimesh.creation.icosphere(subdivisions=4, radius=10.0)
+    rng = np.random.default_rng(0)
+    sigma = 0.02
+    noisy = mesh.vertices + mesh.vertex_normals * rng.normal(0.0, sigma, (len(mesh.vertices), 1))
+    result = convert((noisy, mesh.faces), deviation=False)
+    assert result.brep.validity.ok
+    assert result.report["faces_by_type"] == {"sphere": 1}
+    (fit,) = result.fits.values()
+    assert abs(fit.params["radius"] - 10.0) < sigma / 4
+
+
 def test_sphere_meshed_inside_out_is_one_outward_face():
     """A sphere meshed inside out (every triangle wound the wrong way) is turned round with the mesh: one sphere face
     whose normal points out, a valid solid of volume +4/3 π r³ (a face left facing inward would give −)."""
