@@ -188,3 +188,28 @@ def test_generate_only_records_a_case_the_generator_cannot_make(cache):
     ok = generate_job((11, "export", str(cache)))
     assert ok["status"] == "ok" and ok["watertight"], ok
     assert len(np.load(cache / "export" / "seed_00011.labels.npy")) == ok["triangles"]  # a true face per triangle
+
+
+def test_real_parts_are_cases_read_where_they_lie(tmp_path, shared):
+    """The shared real parts are corpus cases keyed after every generated seed, in name order. Their truth is the shared
+    file itself (no copy in the cache), and their metadata is the part's: the io1 flange of the shared README has 17
+    faces (11 cylinders, 5 planes, 1 cone); its export mesh is closed and gives every true face triangles."""
+    from bench.corpus.real import REAL_BASE, real_files, real_seeds
+    from bench.corpus.truth import materialise
+
+    folder = shared("parts")
+    files = real_files(folder)
+    assert len(files) >= 12 and files == sorted(files)
+    keys = real_seeds(None, folder)
+    assert keys == [REAL_BASE + i for i in range(len(files))]
+    with pytest.raises(ValueError):
+        real_seeds([len(files)], folder)
+    key = keys[[f.name for f in files].index("pythonocc_io1_flange.step")]
+    truth = materialise(key, "export", tmp_path)
+    assert truth.step == folder / "pythonocc_io1_flange.step"
+    assert not (tmp_path / "parts" / f"seed_{key:05d}.step").exists()
+    types = truth.meta["face_types"]
+    assert (len(types), types.count("cylinder"), types.count("plane"), types.count("cone")) == (17, 11, 5, 1)
+    assert truth.meta["family"] == "real:pythonocc_io1_flange"
+    lab = np.load(truth.mesh.with_suffix(".labels.npy"))
+    assert set(lab.tolist()) == set(range(17)) and truth.info["watertight"]

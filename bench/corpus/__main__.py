@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from .measure import run_job
+from .real import real_seeds
 from .regimes import REGIMES
 from .truth import DEFAULT_CACHE
 
@@ -39,6 +40,9 @@ def main(argv=None) -> int:
     p.add_argument("--regime", action="append", choices=REGIMES, help="regime (repeatable; default export)")
     p.add_argument("--count", type=int, default=20, help="parts: seeds 0..COUNT-1 (default 20)")
     p.add_argument("--seeds", help="seeds instead of --count, e.g. 0-199 or 3,5,40-49")
+    p.add_argument("--real", action="store_true",
+                   help="the real CAD parts of ../shared/parts instead of generated ones (all of them, or those "
+                        "--seeds numbers in name order)")
     p.add_argument("--jobs", type=int, default=1, help="parts at a time (default 1)")
     p.add_argument("--timeout", type=float, default=600.0, help="seconds recon may take per part (default 600)")
     p.add_argument("--memory", type=int, default=4096, help="MiB of address space recon may take (default 4096)")
@@ -58,6 +62,8 @@ def main(argv=None) -> int:
     logging.getLogger("build123d").setLevel(logging.WARNING)
     try:
         seeds = parse_seeds(args.seeds) if args.seeds else list(range(args.count))
+        if args.real:
+            seeds = real_seeds(parse_seeds(args.seeds) if args.seeds else None)
     except ValueError as err:
         print(f"--seeds: {err}", file=sys.stderr)
         return 2

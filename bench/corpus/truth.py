@@ -3,7 +3,8 @@
 Layout of the cache folder (git-ignored; everything is regenerated from the seed):
 
 - ``parts/seed_NNNNN.step`` and ``.json`` (the part's metadata, :func:`bench.corpus.parts.part`, plus what the STEP
-  round trip changed); the STEP is the truth: the meshes are made from the solid read back from it;
+  round trip changed); the STEP is the truth: the meshes are made from the solid read back from it (a real part,
+  :mod:`bench.corpus.real`, has only its ``.json`` here: its truth is the shared STEP file);
 - ``REGIME/seed_NNNNN.stl`` (``.obj`` for ``export-obj``), ``.labels.npy`` (true face per triangle; for the OBJ per
   polygon) and ``.json`` (the regime's drawn parameters, triangle count, mesh→true deviation).
 """
@@ -18,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .parts import part
+from .real import is_real, real_meta, real_step
 from .regimes import is_watertight, planar_polygons, tessellate_info, write_obj
 
 DEFAULT_CACHE = Path(__file__).resolve().parent / "out" / "cache"
@@ -41,6 +43,14 @@ def true_part(seed: int, cache: Path = DEFAULT_CACHE):
     """``(step path, meta)`` of the part, generated once into ``cache/parts``."""
     folder = Path(cache) / "parts"
     step, js = folder / f"{_stem(seed)}.step", folder / f"{_stem(seed)}.json"
+    if is_real(seed):  # the shared file is the truth, read where it lies; only its metadata is cached
+        step = real_step(seed)
+        if not js.exists():
+            from recon._io import write_json
+
+            folder.mkdir(parents=True, exist_ok=True)
+            write_json(js, real_meta(seed, read_part(step)))
+        return step, json.loads(js.read_text())
     if step.exists() and js.exists():
         return step, json.loads(js.read_text())
     from build123d import export_step

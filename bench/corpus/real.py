@@ -1,0 +1,63 @@
+"""The twelve real CAD parts of ``../shared/parts`` as corpus cases: STEP files nobody here wrote, meshed in the same
+regimes as the generated parts and judged the same way.
+
+A real part is keyed like a generated one, by an integer: :data:`REAL_BASE` plus its index among the files sorted by
+name (``--real`` picks them; ``--seeds 0-3`` then means the first four). Its truth is the shared STEP file itself,
+read where it lies (never copied into the cache or the repository); the cache keeps only its metadata and meshes.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+#: Keys of real parts start here, far above any generated seed.
+REAL_BASE = 1_000_000
+#: ../shared/parts beside the checkout, as CI lays it out.
+REAL_DIR = Path(__file__).resolve().parents[3] / "shared" / "parts"
+
+
+def real_files(folder: Path = REAL_DIR) -> list[Path]:
+    """The real parts' STEP files, sorted by name (their order gives their keys)."""
+    return sorted(p for p in folder.glob("*") if p.suffix.lower() in (".step", ".stp"))
+
+
+def is_real(seed: int) -> bool:
+    return int(seed) >= REAL_BASE
+
+
+def real_seeds(indices: list[int] | None = None, folder: Path = REAL_DIR) -> list[int]:
+    """The keys of the real parts (``indices`` into :func:`real_files`, default all)."""
+    n = len(real_files(folder))
+    picked = list(range(n)) if indices is None else indices
+    bad = [i for i in picked if not 0 <= i < n]
+    if bad:
+        raise ValueError(f"real parts are numbered 0-{n - 1} ({folder}), got {bad}")
+    return [REAL_BASE + i for i in picked]
+
+
+def real_step(seed: int, folder: Path = REAL_DIR) -> Path:
+    """The shared STEP file of a real part's key."""
+    files = real_files(folder)
+    i = int(seed) - REAL_BASE
+    if not 0 <= i < len(files):
+        raise ValueError(f"no real part {seed}: {len(files)} STEP files in {folder}")
+    return files[i]
+
+
+def real_meta(seed: int, solid) -> dict:
+    """The metadata of a real part (the fields :func:`bench.corpus.parts.part` gives a generated one)."""
+    from .parts import _face_types
+
+    types = _face_types(solid)
+    areas = [float(f.area) for f in solid.faces()]
+    bb = solid.bounding_box()
+    step = real_step(seed)
+    return dict(
+        seed=int(seed), family=f"real:{step.stem}", ops=[], dropped=[],
+        traits=["freeform"] if any(t == "bspline" for t, _ in types) else [],
+        faces=len(types), face_types=[t for t, _ in types], occ_types=[o for _, o in types], face_areas=areas,
+        volume=float(solid.volume), area=float(sum(areas)),
+        diagonal=float(math.dist((bb.min.X, bb.min.Y, bb.min.Z), (bb.max.X, bb.max.Y, bb.max.Z))),
+        area_ratio=float(min(areas) / max(areas)), source=step.name,
+    )
