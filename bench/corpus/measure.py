@@ -160,6 +160,8 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
         return row
     row["generate_seconds"] = round(time.perf_counter() - t0, 2)
     meta = truth.meta
+    if "faces_unified" in meta:  # a real part: its faces with split cylinders joined (bench.corpus.real)
+        row["faces_true_unified"] = meta["faces_unified"]
     row.update(family=meta["family"], traits=meta["traits"], faces_true=meta["faces"],
                triangles=truth.info["triangles"], mesh_watertight=truth.info["watertight"])
     if recon:
