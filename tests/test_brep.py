@@ -775,6 +775,43 @@ def test_a_part_whose_every_face_is_refused_keeps_the_nearest_unless_wild(sharp_
         assert rec[4].face is None and rec[4].status == "failed"
 
 
+def test_a_face_the_mesher_cannot_triangulate_is_passed_over_for_the_next_way(sharp_box, monkeypatch):
+    """crank: a junction B-spline on the shared edges was valid for BRepCheck but its boundary crossed itself on the
+    surface, so OpenCascade's mesher gave it no triangle: a hole in FreeCAD and in every STL export (issue 25). Such
+    a face is passed over like a face out of reach; here a bow-tie on the box's side gives way to the side itself. A
+    square gets triangles; the bow-tie none."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
+    from OCP.gp import gp_Pln, gp_Pnt
+
+    from recon.brep import _strategies
+    from recon.brep._faces import Reach
+
+    def polygon_face(corners):
+        poly = BRepBuilderAPI_MakePolygon()
+        for c in corners:
+            poly.Add(gp_Pnt(*c))
+        poly.Close()
+        return BRepBuilderAPI_MakeFace(gp_Pln(), poly.Wire(), True).Face()
+
+    v, f, lab = sharp_box
+    reach = Reach.of(v, 0.01)
+    assert not reach.unmeshable(polygon_face([(0, 0, 0), (10, 0, 0), (10, 10, 0), (0, 10, 0)]))
+    bow_tie = polygon_face([(0, 0, 0), (10, 10, 0), (10, 0, 0), (0, 10, 0)])
+    assert reach.unmeshable(bow_tie)
+
+    def crossed(job, message):
+        if job.part != 4:
+            return _strategies._none(message)
+        return _strategies.Attempt(bow_tie, 50.0, _strategies.FaceStatus.OK, message)
+
+    order = _strategies.ORDERS["own surface"]
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", (crossed, *order))
+    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01, mesh_points=v)
+    rec = {r.part: r for r in res.faces}
+    assert "crossed: its face gets no triangles from OpenCascade's mesher" in rec[4].message
+    assert res.ok and res.validity.n_faces == 6 and res.validity.volume == pytest.approx(6000.0, rel=1e-5)
+
+
 def test_reach_margin_and_box():
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.gp import gp_Pln

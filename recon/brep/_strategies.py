@@ -226,6 +226,16 @@ def _whole(job: FaceJob, warnings: list) -> FaceRecord:
     return FaceRecord(job.part, job.name, job.kind, job.model.kind, status, area, face, message)
 
 
+def _kept_unmeshable(job: FaceJob, unmeshable: list, warnings: list) -> Attempt:
+    """The last resort of a part whose every face within reach gets no triangles from the mesher: the first of them
+    (valid, and it closes the solid; the verdict names it as a face no viewer shows)."""
+    name, got = unmeshable[0]
+    warnings.extend(got.warnings)
+    warnings.append(f"{job.name}: no way of building it gave a face OpenCascade's mesher triangulates; kept the one "
+                    f"by {name}")
+    return got
+
+
 def build_face(job: FaceJob, warnings: list) -> FaceRecord:
     """The part's face by the first strategy of its order that gives one (``FAILED`` and no face if none does);
     what each says about the face is appended to ``warnings``."""
@@ -235,6 +245,7 @@ def build_face(job: FaceJob, warnings: list) -> FaceRecord:
     message = _first_message(job)
     got = _none(message)
     refused: list[tuple[float, str, Attempt]] = []  # (how far out, by which strategy, its face): the last resort
+    unmeshable: list[tuple[str, Attempt]] = []  # (by which strategy, its face): valid faces no mesher triangulates
     for strategy in order:
         fired = time_limits_fired()
         got = strategy(job, message)
@@ -251,11 +262,17 @@ def build_face(job: FaceJob, warnings: list) -> FaceRecord:
             refused.append((far, strategy.__name__, got))
             got = _none(_join(message, f"{strategy.__name__}: {job.reach.why(far)}"))
             message = got.message
+        elif got.face is not None and job.reach is not None and job.reach.unmeshable(got.face):
+            unmeshable.append((strategy.__name__, got))
+            got = _none(_join(message, f"{strategy.__name__}: its face gets no triangles from OpenCascade's mesher "
+                                       "(its boundary crosses itself on the surface)"))
+            message = got.message
         if got.face is not None:
             warnings.extend(got.warnings)
             break
     else:
-        got = _nearest_refused(job, refused, message, warnings)
+        got = _kept_unmeshable(job, unmeshable, warnings) if unmeshable else _nearest_refused(job, refused, message,
+                                                                                               warnings)
     if got.status.own:
         surface_type = job.model.kind
     else:
