@@ -1,5 +1,6 @@
 """Runs of plane strips the exact path's seeds left as planes become their curved face (recon/segment/_exact_strips.py),
-and narrow true planes next to curved faces stay planes.
+narrow true planes next to curved faces stay planes, and a strip's quad sharing its plane with a fillet's triangle
+goes to its cylinder (recon/segment/_exact_split.py).
 
 Expected numbers are the parts' own: a cylinder with one filleted rim has 4 faces (a cylinder, a torus, two planes); a
 bar whose two top edges are filleted down to a 0.4-wide flat and one bottom edge chamfered has 9 (two cylinders, seven
@@ -88,3 +89,19 @@ def test_a_narrow_flat_between_fillets_and_a_chamfer_stay_planes(chord, angle):
     found = E.exact_faces(*_faces_args(bar, chord, angle))
     assert found is not None
     assert dict(Counter(f.type for f in found.fits.values())) == dict(true)
+
+
+@pytest.mark.parametrize("radius, fillet, height, chord, angle",
+                         [(10, 0.5, 20, 1e-3, 0.5), (19, 4, 10, 1.5e-3, 0.3), (27.7, 2, 20, 1.5e-3, 0.5)])
+def test_a_rim_fillet_triangle_in_a_cylinder_quads_plane_splits_its_atom(radius, fillet, height, chord, angle):
+    """A fillet triangle next to the rim can lie in the plane of the cylinder quad beside it to round-off: that plane
+    atom, held whole by no curved surface, cut the cylinder's strip (recon/segment/_exact_split.py; export seeds 86 and
+    136). Before: 5, 7 and 11 faces for these 4; now the part's faces, triangle for triangle."""
+    solid = bd.fillet(bd.Cylinder(radius, height).edges().group_by(bd.Axis.Z)[-1], fillet)
+    mesh, true = _export(solid, chord, angle)
+    atoms = E.plane_atoms(mesh, E.roundoff(mesh.vertices))
+    assert any(len(np.unique(true[atoms == a])) > 1 for a in np.unique(atoms))  # the case: an atom of two true faces
+    found = E.exact_faces(mesh, TOL_SHARE * float(mesh.diagonal), atoms)
+    assert found is not None
+    assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 1, "torus": 1, "plane": 2}
+    assert len(set(zip(found.labels.tolist(), true.tolist()))) == 4  # the same partition as the part's faces

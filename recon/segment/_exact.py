@@ -24,6 +24,7 @@ from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_freeform import impossible_types
 from ._exact_merge import merge_curved
+from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
@@ -544,8 +545,13 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     notes: list = []
     labels = np.full(len(F), -1, dtype=np.int64)
     fits: dict = {}
-    taken = np.zeros(len(at.tris), bool)
     curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
+    # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them (seed 86)
+    at, split = split_atoms(at, curved, eps, COS_CREASE,
+                            lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag),
+                            lambda labels: _Atoms.of(mesh, labels))
+    if split is not curved:
+        curved = reclaim(at, split, eps, sag)
     # runs of plane strips no seed explained (a cylinder one quad wide between fillets: seed 15), then merged as bands
     curved = strip_faces(at, curved, eps, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None))
     # bands of one torus (two latitude circles lie on a cone, a cylinder or a sphere) joined when one surface holds
@@ -558,6 +564,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         curved = reclaim(at, merged, eps, sag)
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
+    taken = np.zeros(len(at.tris), bool)
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
     for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes):
         p = len(fits)
