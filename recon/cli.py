@@ -78,6 +78,14 @@ def _version() -> str:
         return "unknown (not installed)"
 
 
+class _VersionAction(argparse._VersionAction):
+    """``--version``, the version looked up only when asked (``importlib.metadata`` is 0.03 s of every run's start)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        self.version = f"recon {_version()}"
+        super().__call__(parser, namespace, values, option_string)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="recon",
@@ -85,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
         "by the Voronoi skeleton decomposition of Wekel & Hellwich.",
         epilog=_EPILOG,
     )
-    parser.add_argument("--version", action="version", version=f"recon {_version()}")
+    parser.add_argument("--version", action=_VersionAction)
     _verbosity(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name in SUBCOMMANDS:

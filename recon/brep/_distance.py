@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
-from matplotlib.path import Path as MplPath
 from scipy.spatial import cKDTree
 
 from OCP.Bnd import Bnd_Box
@@ -49,6 +48,7 @@ from OCP.TopTools import TopTools_IndexedMapOfShape
 from ..errors import BrepError, InputError
 from ._edge_distance import edge_samples, edges_distance
 from ._edge_distance import xyz as _xyz
+from ._rings import ring_contains
 from ._step_read import faces_of
 from ._surfaces import SURFACE_TYPE_NAMES
 
@@ -358,7 +358,7 @@ class BrepDistance:
         wrapped = np.column_stack([u0 + nuv[:, 0] * du, v0 + nuv[:, 1] * dv])
         inside = np.zeros(len(uv), dtype=bool)
         for ring in fd.rings:
-            inside ^= MplPath(ring).contains_points(nuv)
+            inside ^= ring_contains(ring, nuv)
         if fd.ring_tree is not None:
             near = fd.ring_tree.query(nuv, k=1, distance_upper_bound=_BAND)[0] < _BAND
             # UV coincidence at 1e-7 of the diagonal: OCC's Precision::Confusion relative to part size

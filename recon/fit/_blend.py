@@ -5,7 +5,6 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.interpolate import make_lsq_spline
 
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface, clamped_knots
@@ -44,6 +43,8 @@ def ruled_surface(left_polyline, right_polyline, *, degree: int = 3, spans: int 
         ``type == "bspline"`` with ``degree_v == 1``; u runs along, v ∈ [0, 1] across (v = 0 on the left).
         The deviation is that of the polyline points.
     """
+    from scipy.interpolate import make_lsq_spline  # imported where used: start-up (bench/speed.md)
+
     left = as_points(left_polyline, "left_polyline", min_count=2, error=FitError)
     right = as_points(right_polyline, "right_polyline", min_count=2, error=FitError)
     if np.linalg.norm(left[0] - right[-1]) + np.linalg.norm(left[-1] - right[0]) < np.linalg.norm(

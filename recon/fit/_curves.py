@@ -11,8 +11,6 @@ import logging
 
 import numpy as np
 import numpy.typing as npt
-from scipy.interpolate import BSpline, splprep
-from scipy.optimize import least_squares
 from scipy.spatial import cKDTree
 
 from .._array import as_points, perpendicular_frame
@@ -113,6 +111,8 @@ def fit_circle(points, *, tolerance: float | None = None, closed: bool = False) 
         rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
         return np.hypot(rho - x[5], h)
 
+    from scipy.optimize import least_squares  # imported where used: start-up (bench/speed.md)
+
     res = least_squares(fun, np.r_[0.0, 0.0, 0.0, 0.0, 0.0, np.sqrt(r2)], x_scale="jac", max_nfev=100)
     normal = n0 + res.x[0] * e1 + res.x[1] * e2
     normal /= np.linalg.norm(normal)
@@ -171,6 +171,8 @@ def fit_bspline_curve(points, *, tolerance: float, closed: bool = False, degree:
         raise FitError(f"`degree` must be in 1..5, got {degree}")
     if not tolerance > 0:
         raise FitError(f"`tolerance` must be > 0, got {tolerance}")
+    from scipy.interpolate import splprep  # imported where used: start-up (bench/speed.md)
+
     data = np.vstack([pts, pts[:1]]) if closed else pts
     keep = np.r_[True, np.linalg.norm(np.diff(data, axis=0), axis=1) > 0]
     data = data[keep]
@@ -348,6 +350,8 @@ def _bspline_pinned(pts, *, closed: bool, tolerance: float, degree: int = 3) -> 
     (Eilers & Marx, P-splines). The residual is measured on the curve densely sampled against the polyline,
     not only at the data points: it is what the B-rep builder and the report can trust.
     """
+    from scipy.interpolate import BSpline  # imported where used: start-up (bench/speed.md)
+
     pts = _distinct(pts)
     if len(pts) < 2:
         raise InputError("fit_edge_curve: an edge polyline has fewer than two distinct points")

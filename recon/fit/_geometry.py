@@ -12,14 +12,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import StrEnum
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.interpolate import BSpline
 from scipy.spatial import cKDTree
 
 from .._array import x_or_y_helper, row_norms, unit
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface
+
+if TYPE_CHECKING:
+    from scipy.interpolate import BSpline
 
 __all__ = ["Plane", "Sphere", "Cylinder", "Cone", "Torus", "BSplineSurface", "SurfaceKind", "CLOSED_KINDS", "surface_from_params",
            "Line", "Circle", "BSplineCurve", "curve_from_params", "Surface", "Curve", "CurveKind", "EdgeCurve"]
@@ -282,6 +285,8 @@ class BSplineCurve:
 
     @property
     def _spline(self) -> BSpline:
+        from scipy.interpolate import BSpline  # here: 0.1 s of start-up that lines and arcs never use
+
         return BSpline(self.knots, self.control_points, self.degree, extrapolate=False)
 
     def evaluate(self, t) -> np.ndarray:

@@ -24,7 +24,6 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import FitError
 from ._noise import estimate_normals
@@ -112,6 +111,8 @@ def _solve(fun, jac, x0, q, f_scale, f0=None):
     ``f0``: ``fun(x0, q)`` when the caller has it (the loop scales it in place: it is not the caller's after this).
     """
     if not DIRECT_LOOP or not callable(jac):
+        from scipy.optimize import least_squares  # here: scipy.optimize is 0.1 s of start-up the direct loop never uses
+
         return least_squares(fun, x0, args=(q,), jac=jac, loss="soft_l1", f_scale=f_scale, x_scale="jac",
                              max_nfev=_MAX_NFEV)
     x0 = np.atleast_1d(x0).astype(float)
