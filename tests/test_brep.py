@@ -710,6 +710,19 @@ def test_faces_on_their_mesh_boundaries_sew_into_the_cylinder(monkeypatch):
     assert sum("built on its mesh boundary" in w for w in res.warnings) == 3
 
 
+def _tried_first_on_part_4(monkeypatch, name: str, face, area: float) -> None:
+    """Part 4 of the box tries a strategy ``name`` giving ``face`` before its own ways (the others skip it)."""
+    from recon.brep import _strategies
+
+    def strategy(job, message):
+        if job.part != 4:
+            return _strategies._none(message)
+        return _strategies.Attempt(face, area, _strategies.FaceStatus.OK, message)
+
+    strategy.__name__ = name
+    monkeypatch.setitem(_strategies.ORDERS, "own surface", (strategy, *_strategies.ORDERS["own surface"]))
+
+
 def test_a_face_reaching_far_outside_the_mesh_is_refused_and_the_next_way_tried(sharp_box, monkeypatch):
     """export seed 13: planes on sliver parts came out untrimmed, 1.4e10 mm from a 130 mm mesh (volume 4.9e20), and
     the deviation took 185 s and 6.4 GB measuring them. A face reaching beyond the mesh's box by more than the
@@ -717,17 +730,8 @@ def test_a_face_reaching_far_outside_the_mesh_is_refused_and_the_next_way_tried(
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.gp import gp_Pln
 
-    from recon.brep import _strategies
-
     huge = BRepBuilderAPI_MakeFace(gp_Pln(), -1e10, 1e10, -1e10, 1e10).Face()
-
-    def untrimmed(job, message):
-        if job.part != 4:
-            return _strategies._none(message)
-        return _strategies.Attempt(huge, 4e20, _strategies.FaceStatus.OK, message)
-
-    order = _strategies.ORDERS["own surface"]
-    monkeypatch.setitem(_strategies.ORDERS, "own surface", (untrimmed, *order))
+    _tried_first_on_part_4(monkeypatch, "untrimmed", huge, 4e20)
     v, f, lab = sharp_box
     res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01)
     rec = {r.part: r for r in res.faces}
@@ -783,7 +787,6 @@ def test_a_face_the_mesher_cannot_triangulate_is_passed_over_for_the_next_way(sh
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
     from OCP.gp import gp_Pln, gp_Pnt
 
-    from recon.brep import _strategies
     from recon.brep._faces import Reach
 
     def polygon_face(corners):
@@ -799,13 +802,7 @@ def test_a_face_the_mesher_cannot_triangulate_is_passed_over_for_the_next_way(sh
     bow_tie = polygon_face([(0, 0, 0), (10, 10, 0), (10, 0, 0), (0, 10, 0)])
     assert reach.unmeshable(bow_tie)
 
-    def crossed(job, message):
-        if job.part != 4:
-            return _strategies._none(message)
-        return _strategies.Attempt(bow_tie, 50.0, _strategies.FaceStatus.OK, message)
-
-    order = _strategies.ORDERS["own surface"]
-    monkeypatch.setitem(_strategies.ORDERS, "own surface", (crossed, *order))
+    _tried_first_on_part_4(monkeypatch, "crossed", bow_tie, 50.0)
     res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01, mesh_points=v)
     rec = {r.part: r for r in res.faces}
     assert "crossed: its face gets no triangles from OpenCascade's mesher" in rec[4].message
