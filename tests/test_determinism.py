@@ -150,7 +150,7 @@ def test_a_safety_time_limit_that_fires_fails_the_part(monkeypatch):
     monkeypatch.setitem(_strategies.ORDERS, "own surface", (hangs, would_build))
     job = _strategies.FaceJob(
         part=0, name="patch_0", kind="patch", model=SimpleNamespace(kind="plane"), fit=None, fit_ok=True, near=False,
-        loops=[],
+        loops=[np.array([1])],  # a bounded part (one with no loop is a whole sphere's or torus's, built apart)
         points=np.zeros((0, 3)), normals=np.zeros((0, 3)), vote=1, network=None, geo=None, edges=[], context=None,
         tolerance=0.01, expected_area=None, fill_budget=FillingBudget(72))
     warnings: list[str] = []
