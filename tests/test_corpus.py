@@ -220,4 +220,5 @@ def test_real_parts_are_cases_read_where_they_lie(tmp_path, shared):
     from bench.corpus.truth import true_part
 
     axle = keys[[f.name for f in files].index("elmer_vaporizer_axle.step")]
-    assert (true_part(axle, tmp_path)[1]["faces"], true_part(axle, tmp_path)[1]["faces_unified"]) == (77, 47)
+    meta = true_part(axle, tmp_path)[1]
+    assert (meta["faces"], meta["faces_unified"]) == (77, 47)

@@ -540,16 +540,22 @@ def part(seed: int):
     solid = b.solid
     if not solid.is_valid or len(solid.solids()) != 1:  # every step is checked; this is the last word
         raise RuntimeError(f"seed {seed}: the part is not one valid solid")
+    meta = dict(b.meta)
+    meta.update(seed=int(seed), **solid_meta(solid))
+    if "bspline" in meta["face_types"] and "freeform" not in meta["traits"]:
+        meta["traits"].append("freeform")
+    return solid, meta
+
+
+def solid_meta(solid) -> dict:
+    """What the corpus records of any true solid: faces, face_types (recon's names), occ_types, face_areas, volume,
+    area, diagonal, area_ratio (smallest / largest face)."""
     types = _face_types(solid)
     areas = [float(f.area) for f in solid.faces()]
     bb = solid.bounding_box()
-    meta = dict(b.meta)
-    if any(t == "bspline" for t, _ in types) and "freeform" not in meta["traits"]:
-        meta["traits"].append("freeform")
-    meta.update(
-        seed=int(seed), faces=len(types), face_types=[t for t, _ in types], occ_types=[o for _, o in types],
+    return dict(
+        faces=len(types), face_types=[t for t, _ in types], occ_types=[o for _, o in types],
         face_areas=areas, volume=float(solid.volume), area=float(sum(areas)),
         diagonal=float(math.dist((bb.min.X, bb.min.Y, bb.min.Z), (bb.max.X, bb.max.Y, bb.max.Z))),
         area_ratio=float(min(areas) / max(areas)),
     )
-    return solid, meta

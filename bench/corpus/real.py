@@ -8,7 +8,6 @@ read where it lies (never copied into the cache or the repository); the cache ke
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 #: Keys of real parts start here, far above any generated seed.
@@ -46,21 +45,15 @@ def real_step(seed: int, folder: Path = REAL_DIR) -> Path:
 
 
 def real_meta(seed: int, solid) -> dict:
-    """The metadata of a real part (the fields :func:`bench.corpus.parts.part` gives a generated one)."""
-    from .parts import _face_types
+    """The metadata of a real part: :func:`bench.corpus.parts.solid_meta`, its family ``real:NAME``, its source file
+    and its face count with same-surface neighbours joined (:func:`unified_faces`)."""
+    from .parts import solid_meta
 
-    types = _face_types(solid)
-    areas = [float(f.area) for f in solid.faces()]
-    bb = solid.bounding_box()
     step = real_step(seed)
-    return dict(
-        seed=int(seed), family=f"real:{step.stem}", ops=[], dropped=[],
-        traits=["freeform"] if any(t == "bspline" for t, _ in types) else [],
-        faces=len(types), face_types=[t for t, _ in types], occ_types=[o for _, o in types], face_areas=areas,
-        volume=float(solid.volume), area=float(sum(areas)),
-        diagonal=float(math.dist((bb.min.X, bb.min.Y, bb.min.Z), (bb.max.X, bb.max.Y, bb.max.Z))),
-        area_ratio=float(min(areas) / max(areas)), source=step.name, faces_unified=unified_faces(solid),
-    )
+    meta = dict(seed=int(seed), family=f"real:{step.stem}", ops=[], dropped=[], traits=[], **solid_meta(solid))
+    if "bspline" in meta["face_types"]:
+        meta["traits"].append("freeform")
+    return dict(meta, source=step.name, faces_unified=unified_faces(solid))
 
 
 def unified_faces(solid) -> int | None:

@@ -122,22 +122,19 @@ class Reach:
 
     def unmeshable(self, face) -> bool:
         """Whether OpenCascade's mesher leaves ``face`` without a triangle at FreeCAD's display settings for this mesh
-        (a boundary that crosses itself on the surface: a hole in every viewer, every STL export; issue 25). Meshed
-        on a copy, as :func:`recon.brep._tessellate.unmeshed_faces` meshes the result."""
+        (a hole in every viewer and every STL export; issue 25). Meshed on a copy, as
+        :func:`recon.brep._tessellate.unmeshed_faces` meshes the result."""
         from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
         from OCP.BRepMesh import BRepMesh_IncrementalMesh
-        from OCP.TopLoc import TopLoc_Location
 
-        from ._tessellate import DISPLAY_ANGLE, DISPLAY_DEVIATION
+        from ._tessellate import DISPLAY_ANGLE, box_display_deflection, has_triangles
 
-        deflection = DISPLAY_DEVIATION * float(np.mean(self.hi - self.lo))  # (FreeCAD's: the mean side of the box)
         try:
             copy = TopoDS.Face_s(BRepBuilderAPI_Copy(face, True, False).Shape())
-            BRepMesh_IncrementalMesh(copy, deflection, False, DISPLAY_ANGLE, True)
-            tri = BRep_Tool.Triangulation_s(copy, TopLoc_Location())
+            BRepMesh_IncrementalMesh(copy, box_display_deflection(self.lo, self.hi), False, DISPLAY_ANGLE, True)
         except Exception:  # noqa: BLE001  (OCC raises Standard_Failure: then the face got no triangles)
             return True
-        return tri is None or tri.NbTriangles() == 0
+        return not has_triangles(copy)
 
     def wild(self, far: float) -> bool:
         """Whether a face reaching ``far`` outside is wild: farther than :data:`REACH_MESHED` diagonals, where

@@ -265,7 +265,7 @@ def build_face(job: FaceJob, warnings: list) -> FaceRecord:
         elif got.face is not None and job.reach is not None and job.reach.unmeshable(got.face):
             unmeshable.append((strategy.__name__, got))
             got = _none(_join(message, f"{strategy.__name__}: its face gets no triangles from OpenCascade's mesher "
-                                       "(its boundary crosses itself on the surface)"))
+                                       "(a hole in every viewer)"))
             message = got.message
         if got.face is not None:
             warnings.extend(got.warnings)

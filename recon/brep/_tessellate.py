@@ -149,7 +149,20 @@ def display_deflection(shape) -> float:
     if box.IsVoid():
         return float(Precision.Confusion_s())
     x0, y0, z0, x1, y1, z1 = box.Get()
-    return max(DISPLAY_DEVIATION * ((x1 - x0) + (y1 - y0) + (z1 - z0)) / 3.0, float(Precision.Confusion_s()))
+    return box_display_deflection(np.array([x0, y0, z0]), np.array([x1, y1, z1]))
+
+
+def box_display_deflection(lo: np.ndarray, hi: np.ndarray) -> float:
+    """FreeCAD's display deflection for a bounding box ``lo``..``hi`` (:func:`display_deflection`)."""
+    from OCP.Precision import Precision
+
+    return max(DISPLAY_DEVIATION * float(np.mean(np.asarray(hi) - np.asarray(lo))), float(Precision.Confusion_s()))
+
+
+def has_triangles(face) -> bool:
+    """Whether ``face`` holds a triangulation with at least one triangle."""
+    tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
+    return tri is not None and tri.NbTriangles() > 0
 
 
 def unmeshed_faces(shape) -> list[int]:
@@ -168,9 +181,4 @@ def unmeshed_faces(shape) -> list[int]:
         BRepMesh_IncrementalMesh(copy, display_deflection(copy), False, DISPLAY_ANGLE, True)
     except Exception as err:  # noqa: BLE001  (OCC raises Standard_Failure: then no face got its triangles)
         log.warning("BRepMesh failed on the whole shape (%s: %s)", type(err).__name__, err)
-    out = []
-    for i, face in enumerate(faces_of(copy)):
-        tri = BRep_Tool.Triangulation_s(face, TopLoc_Location())
-        if tri is None or tri.NbTriangles() == 0:
-            out.append(i)
-    return out
+    return [i for i, face in enumerate(faces_of(copy)) if not has_triangles(face)]

@@ -347,8 +347,8 @@ def _part_loops(edge_vertices, edge_parts, coords, offsets, vertices, faces, lab
     mean_normal = np.zeros((int(labels.max()) + 1, 3))
     np.add.at(mean_normal, labels, area_vec)
 
-    # a part no edge bounds is a closed body one face covers (a whole sphere or torus): a part with no loop
-    parts = np.union1d(np.array(sorted(p for p in by_part if p != OUTSIDE), dtype=np.int64), np.unique(labels))
+    # every label is a part; one no edge bounds is a closed body one face covers (a whole sphere or torus): no loop
+    parts = np.unique(labels).astype(np.int64)
     loops: list[int] = []
     loop_offsets = [0]
     loop_part: list[int] = []

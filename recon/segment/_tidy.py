@@ -117,8 +117,8 @@ def cut_unbounded(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> np.nda
 
     A face needs a boundary, and a closed body covered by one smooth part (an ellipsoid, a coarse free-form part)
     has none: no edge bounds it, and the B-rep has nothing to build on; only a sphere or torus fitted within
-    tolerance bounds itself (its seams and poles, :data:`recon.fit.CLOSED_KINDS`) and stays one face. Cutting the body by
-    the plane through its centroid across its longest principal axis gives two parts sharing one loop, the
+    tolerance bounds itself (its seams and poles, :data:`recon.fit.CLOSED_KINDS`) and stays one face. Cutting the
+    body by the plane through its centroid across its longest principal axis gives two parts sharing one loop, the
     least a closed surface needs (OpenCascade's own sphere has a seam); each half is fitted like any part.
     """
     mesh, pairs = ctx.mesh, ctx.pairs
