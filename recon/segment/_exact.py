@@ -546,7 +546,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     labels = np.full(len(F), -1, dtype=np.int64)
     fits: dict = {}
     curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
-    # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them (seed 86)
+    # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them
     at, split = split_atoms(at, curved, eps, COS_CREASE,
                             lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag),
                             lambda labels: _Atoms.of(mesh, labels))

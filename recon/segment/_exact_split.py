@@ -3,11 +3,10 @@
 A plane atom is a maximal set of triangles one plane holds to round-off. Where a face meets a curved face tangentially
 (a fillet along a cylinder's rim), a triangle of the fillet can lie in the plane of the cylinder's quad next to it, to
 round-off: the atom spans two true faces, no curved surface holds it whole, and the cylinder's strip it belongs to is
-cut there (export seed 86: a cylinder as two faces with two such atoms between; seed 136: a hole's wall cut by its
-rim's fillet triangles). Here each curved region, largest first, takes the single triangles of such atoms that its
-surface holds (every vertex to round-off, every chord within the sag), reached across smooth edges from its own
-triangles and whose normal agrees with the surface's there, as a chord's does; what is left of the atom stays an atom.
-numpy/scipy only; the surface test is the caller's ``holds(fit, ids, tris)``.
+cut there (bench/exact.md, "Exit 0 with a wrong face count"). Here each curved region, largest first, takes the single
+triangles of such atoms that its surface holds (every vertex to round-off, every chord within the sag), reached across
+smooth edges from its own triangles and whose normal agrees with the surface's there (:func:`recon.fit.surface_normals`),
+as a chord's does; what is left of the atom stays an atom. The surface test is the caller's ``holds(fit, ids, tris)``.
 """
 
 from __future__ import annotations
@@ -17,16 +16,11 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
+from ..fit import surface_normals
+
 __all__ = ["split_atoms"]
 
 Holds = Callable[[Any, np.ndarray, np.ndarray], bool]
-
-
-def _surface_normals(fit: Any, P: np.ndarray, h: float) -> np.ndarray:
-    """(n, 3) unit normals of ``fit``'s surface near the points ``P``: the gradient of its signed distance (central
-    differences of step ``h``)."""
-    g = np.stack([(fit.distance(P + h * e) - fit.distance(P - h * e)) / (2 * h) for e in np.eye(3)], axis=1)
-    return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
 
 
 def _chord_normal_ok(fit: Any, V: np.ndarray, tri: np.ndarray, eps: float) -> bool:
@@ -40,8 +34,7 @@ def _chord_normal_ok(fit: Any, V: np.ndarray, tri: np.ndarray, eps: float) -> bo
     longest = float(np.max(np.linalg.norm(P - np.roll(P, 1, axis=0), axis=1)))
     if area2 <= 0.0 or longest <= 0.0:
         return False
-    h = max(longest * 1e-3, 10 * eps)  # a step well above round-off, well inside the triangle
-    N = _surface_normals(fit, np.vstack([P, P.mean(axis=0, keepdims=True)]), h)
+    N = surface_normals(fit, np.vstack([P, P.mean(axis=0, keepdims=True)]))
     spread = float(np.arccos(np.clip(np.min(N[:3] @ N[:3].T), -1.0, 1.0)))
     slack = 2 * eps / (area2 / longest)  # round-off tilt over the shortest height
     turn = float(np.arccos(np.clip(abs(float(n @ N[3])) / area2, -1.0, 1.0)))
