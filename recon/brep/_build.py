@@ -35,9 +35,10 @@ from ._strategies import FaceJob, build_face
 from ._surfaces import SurfaceModel, surface_model
 from ._tessellate import display_deflection, unmeshed_faces
 
-#: Builds of every face at most: the first at the mesh's display deflection; each next one also at the deflection
-#: of the solid the last one made, when a face of it got no triangles there (a rebuilt face moves the solid's box
-#: only by its own poles: one more round found no new failure on crank, bench/brep.md stop 34).
+#: Builds of every face at most: the first checks each face at the mesh box's display deflection, each next one
+#: also at that of the solid the last one made, where a face of that solid got no triangles (FreeCAD's deflection
+#: comes from the solid's own box, known only once it is built). A rebuild moves the box by what its new faces
+#: reach: crank's second build met its own deflection (bench/brep.md, stop 34); the third bounds the cost at 3×.
 MESHING_ROUNDS = 3
 
 __all__ = ["BrepResult", "FaceRecord", "FaceStatus", "KIND_COLOURS", "Validity", "build_solid", "shape_validity"]

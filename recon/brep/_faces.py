@@ -89,10 +89,10 @@ class Reach:
     @classmethod
     def of(cls, points, tolerance: float) -> Reach:
         """The reach for a mesh whose points (or a sample of them holding its extremes) are ``points (k, 3)``."""
-        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        lo, hi = pts.min(axis=0), pts.max(axis=0)
         from ._tessellate import box_display_deflection
 
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
         return cls(lo, hi, reach_margin(tolerance, float(np.linalg.norm(hi - lo))), (box_display_deflection(lo, hi),))
 
     def meshing_at(self, deflection: float) -> Reach:
@@ -132,8 +132,8 @@ class Reach:
 
     def unmeshable(self, face) -> bool:
         """Whether OpenCascade's mesher leaves ``face`` without a triangle at FreeCAD's display settings for this mesh
-        (a hole in every viewer and every STL export; issue 25), or at any other of :attr:`deflections`. Meshed on a copy, as
-        :func:`recon.brep._tessellate.unmeshed_faces` meshes the result."""
+        (a hole in every viewer and every STL export; issue 25), or at any other of :attr:`deflections`. Meshed on a
+        copy, as :func:`recon.brep._tessellate.unmeshed_faces` meshes the result."""
         from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
         from OCP.BRepMesh import BRepMesh_IncrementalMesh
 
