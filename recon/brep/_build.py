@@ -37,8 +37,8 @@ from ._tessellate import display_deflection, unmeshed_faces
 
 #: Builds of every face at most: the first checks each face at the mesh box's display deflection, each next one
 #: also at that of the solid the last one made, where a face of that solid got no triangles (FreeCAD's deflection
-#: comes from the solid's own box, known only once it is built). A rebuild moves the box by what its new faces
-#: reach: crank's second build met its own deflection (bench/brep.md, stop 34); the third bounds the cost at 3×.
+#: comes from the solid's own box, known only once it is built). A rebuild moves the box only by what its new faces
+#: reach, so a second build meets its own deflection (bench/brep.md, stop 34); the third bounds the cost at 3×.
 MESHING_ROUNDS = 3
 
 __all__ = ["BrepResult", "FaceRecord", "FaceStatus", "KIND_COLOURS", "Validity", "build_solid", "shape_validity"]
