@@ -103,7 +103,7 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
         # The display deflection of the solid itself, which no face knew while it was built: a face that meshes at
         # the mesh's can still get no triangles at it (issue 25). Every face is built again, checked at it too.
         unmeshed, deflection = unmeshed_faces(shape), display_deflection(shape)
-        if round_ and validity is None:  # (a rebuild is kept only if no worse: it must be measured)
+        if validity is None and (unmeshed or round_):  # (a rebuild is kept only if no worse: both are measured)
             validity = shape_validity(shape)
         worse = best is not None and (validity is not None and not validity.ok, len(unmeshed)) > best[0]
         if not worse:
@@ -113,14 +113,14 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
             break
         log.info("%d faces get no triangles at the solid's display deflection %.4g: the faces are built again, each "
                  "checked at it too", len(unmeshed), deflection)
-        given.append(f"{len(unmeshed)} faces got no triangles at the solid's display deflection {deflection:.4g} "
-                     "(FreeCAD's): built again, every face checked at it too")
+        given.append(f"{_counted_faces(len(unmeshed))} got no triangles at the solid's display deflection "
+                     f"{deflection:.4g} (FreeCAD's): built again, every face checked at it too")
         reach = reach.meshing_at(deflection)
     assert best is not None
     _, records, shape, validity, warnings, unmeshed, deflection = best
     if unmeshed:
-        warnings.append(f"{len(unmeshed)} faces get no triangles at the solid's display deflection {deflection:.4g} "
-                        "(FreeCAD's): holes in a viewer")
+        warnings.append(f"{_counted_faces(len(unmeshed))} without triangles at the solid's display deflection "
+                        f"{deflection:.4g} (FreeCAD's): holes in a viewer")
     # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
     records = match_faces(records, _faces_of(shape), network)
     if validity is None:  # (the solid's was measured already: BRepCheck and the volume, a second time for nothing)
@@ -135,6 +135,10 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     for w in warnings:
         log.warning("build_solid: %s", w)
     return BrepResult(occ=shape, faces=tuple(records), validity=validity, geometry=geo, warnings=tuple(warnings))
+
+
+def _counted_faces(n: int) -> str:
+    return f"{n} face" if n == 1 else f"{n} faces"
 
 
 def _assembled(network: CurveNetwork, geo: NetworkGeometry, surfaces: Mapping, models: Mapping, reach: Reach,
