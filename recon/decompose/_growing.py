@@ -178,7 +178,7 @@ def _near(ctx: _Ctx, faces: np.ndarray, free: np.ndarray, radius: float) -> np.n
         nb = unique(nb[nb >= 0])
         nb = nb[free[nb] & ~seen[nb]]
         seen[nb] = True
-        nb = nb[tree.query(ctx.centroid[nb], distance_upper_bound=radius)[0] <= radius]
+        nb = nb[tree.query(ctx.centroid[nb])[0] <= radius]
         out.append(nb)
         frontier = nb
     return np.concatenate(out)
