@@ -100,7 +100,8 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
                   max_seeds: int | None = None, memo: dict | None = None):
     """Regions grown from seeds inside ``allowed``, flattest seed first. Returns a list of (faces, fit).
 
-    ``max_seeds``: try at most this many seed discs (default: until every triangle was tried).
+    ``max_seeds``: try at most this many seed discs (default: until every triangle was tried). A region that grows
+    to less than ``min_area`` is dropped, and no seed is taken within ``ctx.retire`` of it (:func:`_near`).
 
     With a second process (``ctx.worker``, a :class:`recon.decompose._worker._Worker`) the next seed grows there
     while this one grows
