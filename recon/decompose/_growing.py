@@ -5,6 +5,7 @@ next seed grows there, speculatively."""
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..fit import ANALYTIC_FITTERS, SurfaceFit
 from ._regionfit import _accept, _Ctx, _fit_input, _fit_key, _FitInput
@@ -99,7 +100,8 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
                   max_seeds: int | None = None, memo: dict | None = None):
     """Regions grown from seeds inside ``allowed``, flattest seed first. Returns a list of (faces, fit).
 
-    ``max_seeds``: try at most this many seed discs (default: until every triangle was tried).
+    ``max_seeds``: try at most this many seed discs (default: until every triangle was tried). A region that grows
+    to less than ``min_area`` is dropped, and no seed is taken within ``ctx.retire`` of it (:func:`_near`).
 
     With a second process (``ctx.worker``, a :class:`recon.decompose._worker._Worker`) the next seed grows there
     while this one grows
@@ -133,6 +135,10 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
         if area[faces].sum() >= min_area:
             free[faces] = False
             out.append((faces, fit))
+        elif ctx.retire > 0:
+            # under noise a seed within the noise's window of it sees the same surface at the scale the noise
+            # resolves: it regrows (most of) the same too-small region
+            tried[_near(ctx, faces, free, ctx.retire)] = True
 
     while True:
         seed, pos = _next_seed(order, pos, free, tried)
@@ -158,6 +164,25 @@ def _seed_regions(ctx: _Ctx, allowed, priority, min_area: float, area, *, types=
             memo.update(got[2])
         settle(got[0], got[1])
     return out
+
+
+def _near(ctx: _Ctx, faces: np.ndarray, free: np.ndarray, radius: float) -> np.ndarray:
+    """The ``free`` triangles connected to ``faces`` through free triangles whose centroids lie within ``radius`` of
+    a centroid of ``faces`` (rings over ``ctx.adj``: along the surface, not across a thin wall)."""
+    tree = cKDTree(ctx.centroid[faces])
+    seen = np.zeros(len(ctx.F), bool)
+    seen[faces] = True
+    out = [faces]
+    frontier = faces
+    while len(frontier):
+        nb = ctx.adj[frontier].ravel()
+        nb = unique(nb[nb >= 0])
+        nb = nb[free[nb] & ~seen[nb]]
+        seen[nb] = True
+        nb = nb[tree.query(ctx.centroid[nb])[0] <= radius]
+        out.append(nb)
+        frontier = nb
+    return np.concatenate(out)
 
 
 def _next_seed(order: np.ndarray, pos: int, free: np.ndarray, tried: np.ndarray):

@@ -41,6 +41,9 @@ class _Ctx:
         self.wfn_t = np.ascontiguousarray((area[:, None] * fnormal).T)
         #: cosine of the largest dihedral angle a seed disc grows across (:func:`recon.decompose._growing._seed_disc`)
         self.crease = crease
+        #: after a seed's region stays under the least area, seeds within this distance of it are not tried
+        #: (:func:`recon.decompose._growing._seed_regions`); 0: only the region's own triangles
+        self.retire = 0.0
         self.comp_fits: dict = {}
         self.seed_order = None
         self.worker = None

@@ -39,6 +39,7 @@ from scipy.sparse.csgraph import connected_components
 
 from .._array import row_norms, unique_inverse
 from .._tolerance import SIGMAS_PER_TOLERANCE
+from ..features import NOISE_FACTOR
 from ..fit import ANALYTIC_FITTERS, SurfaceFit
 from ..mesh import stable_argsort
 from ._blends import MIN_SPLIT_COVER, _blends, _free_forms
@@ -132,9 +133,13 @@ def fitted_regions(
         cr = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
         fnormal = cr / np.maximum(row_norms(cr, keepdims=True), 1e-300)
     # seed discs stop at facet creases only where the noise makes no such angles
-    crease = SEED_CREASE_COS if SIGMAS_PER_TOLERANCE * noise < TOL_FLOOR * diag else -2.0
+    noisy = not SIGMAS_PER_TOLERANCE * noise < TOL_FLOOR * diag
+    crease = -2.0 if noisy else SEED_CREASE_COS
     ctx = _Ctx(V, F, adj, pairs, edges, fnormal, vnormal, tolerance, angle, diag, corners, centroid, area=area,
                crease=crease)
+    # where the noise sets the tolerance, the feature window (NOISE_FACTOR σ̂) is the finest scale at which two seeds
+    # see different surfaces: a seed that far from one grown too small is not tried (bench/scan.md, issue 23)
+    ctx.retire = NOISE_FACTOR * noise if noisy else 0.0
     comp_faces, comp_areas = _smooth_components(smooth, pairs, area, min_area)
     if tolerance is None:
         tolerance = _noise_tolerance(ctx, comp_faces, noise, diag)
