@@ -78,6 +78,16 @@ def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     assert dict(Counter(f.type for f in found.fits.values())) == dict(Counter(meta["face_types"]))
     for p in range(int(found.labels.max()) + 1):  # every face is one true face
         assert len(np.unique(true[found.labels == p])) == 1
+    assert not [n for n in found.notes if "not proven" in n]
+
+
+def test_a_variable_fillet_cut_into_a_cone_and_planes_is_not_proven(tmp_path):
+    """Export seed 65: a variable-radius fillet (one B-spline face of 8 triangles) lies on a cone to round-off but for
+    its end quads, which stay planes meeting the cone at a kink of 1.2-1.3 degrees (their round-off tilt: 0.3-0.8):
+    26 faces for 24, and the notes say the count is not proven there."""
+    found, true, meta = _corpus_faces(65, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"] + 2
+    assert [n for n in found.notes if n.startswith("face count not proven: 2 edge(s)")]
 
 
 def _corpus_faces(seed: int, tmp_path):

@@ -3,7 +3,7 @@
 A loft's or a sweep's wall is one B-spline face whose quads, few at a time, lie on a cone, a cylinder or a sphere to
 round-off (a handful of vertices on two section curves leave a 6-parameter cone room to pass them): the seeds grow
 hundreds of small coincidental curved faces there, and the single triangles between them are too many for the path
-(export seeds 100 and 122, lofts of one wall). The faces that are not proven planes and that border, across smooth
+(a loft's wall: bench/exact.md). The faces that are not proven planes and that border, across smooth
 edges, only the free-form pieces (loose single triangles and B-spline faces) and the planes these border are enclosed by the free-form surface:
 they are joined with it, and the whole is one face when a B-spline through all its vertices holds them within the
 run's tolerance. A true analytic face tangent to some other face beside the free-form one is never enclosed, and a
@@ -54,7 +54,7 @@ def enclosed_free_form(labels: np.ndarray, kinds: list, pairs: np.ndarray, smoot
     seed = loose | np.array([t == "bspline" for t in kinds])
     proven = np.array([t == "plane" and c > 2 for t, c in zip(kinds, count)])
     # the planes the free-form pieces themselves border: a piece of the free-form face along such a plane's edge
-    # borders it too (a loft's wall meets its end cap at 53 degrees, under the crease, on export seed 122)
+    # borders it too (a loft's wall may meet its end cap at less than the crease angle)
     rim = np.zeros(k, bool)
     rim[b[seed[a] & proven[b]]] = True
     rim[a[seed[b] & proven[a]]] = True
