@@ -809,6 +809,42 @@ def test_a_face_the_mesher_cannot_triangulate_is_passed_over_for_the_next_way(sh
     assert res.ok and res.validity.n_faces == 6 and res.validity.volume == pytest.approx(6000.0, rel=1e-5)
 
 
+@pytest.mark.parametrize("hole", ["first solid", "every solid"])
+def test_a_face_without_triangles_at_the_solids_deflection_is_built_again(sharp_box, monkeypatch, hole):
+    """crank: junction_53 meshed at the display deflection of the mesh's box (0.00707) when it was built, and got no
+    triangle at the solid's (0.01183: OpenCascade's box of the solid holds B-spline poles), which FreeCAD uses: a
+    hole. Where the solid has such a face every face is built again, each also checked at the solid's deflection; a
+    hole that stays ends the rounds as soon as that deflection was checked (a third build would repeat the second)."""
+    from recon.brep import _build
+    from recon.brep._faces import Reach
+    from recon.brep._tessellate import box_display_deflection, display_deflection
+
+    solids, checked = [], set()
+    real_unmeshable = Reach.unmeshable
+
+    def unmeshed(shape):
+        solids.append(shape)
+        return [0] if hole == "every solid" or len(solids) == 1 else []
+
+    def unmeshable(self, face):
+        checked.add((len(solids), self.deflections))
+        return real_unmeshable(self, face)
+
+    monkeypatch.setattr(_build, "unmeshed_faces", unmeshed)
+    monkeypatch.setattr(Reach, "unmeshable", unmeshable)
+    v, f, lab = sharp_box
+    # the box's points drawn 2% in: the solid's deflection is then not the mesh's (as poles and tolerances make it)
+    inner = v.mean(axis=0) + 0.98 * (v - v.mean(axis=0))
+    res = build_solid(curve_network(v, f, lab), _fits_by_label(v, f, lab, 0.01), tolerance=0.01, mesh_points=inner)
+    mesh_d = box_display_deflection(inner.min(axis=0), inner.max(axis=0))
+    assert mesh_d == pytest.approx(0.098) and display_deflection(solids[0]) == pytest.approx(0.1)
+    assert len(solids) == 2  # built twice, never a third time
+    assert checked == {(0, (mesh_d,)), (1, (mesh_d, display_deflection(solids[0])))}
+    assert res.ok and res.validity.n_faces == 6 and res.validity.volume == pytest.approx(6000.0, rel=1e-5)
+    assert sum("built again, every face checked at it too" in w for w in res.warnings) == 1
+    assert any("holes in a viewer" in w for w in res.warnings) == (hole == "every solid")
+
+
 def test_reach_margin_and_box():
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace
     from OCP.gp import gp_Pln

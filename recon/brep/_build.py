@@ -33,6 +33,13 @@ from ._result import KIND_COLOURS, BrepResult, FaceRecord, FaceStatus, Validity,
 from ._shell import assemble, mend_faces, whole_fixed
 from ._strategies import FaceJob, build_face
 from ._surfaces import SurfaceModel, surface_model
+from ._tessellate import display_deflection, unmeshed_faces
+
+#: Builds of every face at most: the first checks each face at the mesh box's display deflection, each next one
+#: also at that of the solid the last one made, where a face of that solid got no triangles (FreeCAD's deflection
+#: comes from the solid's own box, known only once it is built). A rebuild moves the box only by what its new faces
+#: reach, so a second build meets its own deflection (bench/brep.md, stop 34); the third bounds the cost at 3×.
+MESHING_ROUNDS = 3
 
 __all__ = ["BrepResult", "FaceRecord", "FaceStatus", "KIND_COLOURS", "Validity", "build_solid", "shape_validity"]
 
@@ -84,13 +91,64 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     if len(network.nonmanifold):
         warnings.append(f"{len(network.nonmanifold)} non-manifold mesh edges were skipped")
     geo = _placed_network(network, surfaces, models, tolerance, jobs)
-    edges = shared_topology(network, geo, warnings)
-    context = ShapeBuild_ReShape()
-    fill_budget = FillingBudget(FILLING_ATTEMPTS)  # (counted, not timed: the same on every machine, issue 25)
-    kinds, areas = dict(part_kinds or {}), dict(part_areas or {})
     if mesh_points is None:  # (a part's extremes between its samples are missed by far less than the margin)
         mesh_points = np.concatenate([network.coords.reshape(-1, 3), network.samples.reshape(-1, 3)])
     reach = Reach.of(mesh_points, tolerance)
+    open_mesh = bool(np.any(network.edge_parts[:, 1] == OUTSIDE))
+    given, best = list(warnings), None
+    for round_ in range(MESHING_ROUNDS):
+        warnings[:] = given
+        records, shape, validity = _assembled(network, geo, surfaces, models, reach, tolerance, dict(part_kinds or {}),
+                                              dict(part_areas or {}), open_mesh, warnings, progress)
+        # The display deflection of the solid itself, which no face knew while it was built: a face that meshes at
+        # the mesh's can still get no triangles at it (issue 25). Every face is built again, checked at it too.
+        unmeshed, deflection = unmeshed_faces(shape), display_deflection(shape)
+        if validity is None and (unmeshed or round_):  # (a rebuild is kept only if no worse: both are measured)
+            validity = shape_validity(shape)
+        worse = best is not None and (validity is not None and not validity.ok, len(unmeshed)) > best[0]
+        if not worse:
+            best = ((validity is not None and not validity.ok, len(unmeshed)), records, shape, validity,
+                    list(warnings), unmeshed, deflection)
+        if not unmeshed or deflection in reach.deflections or round_ == MESHING_ROUNDS - 1:
+            break
+        log.info("%d faces get no triangles at the solid's display deflection %.4g: the faces are built again, each "
+                 "checked at it too", len(unmeshed), deflection)
+        given.append(f"{_counted_faces(len(unmeshed))} got no triangles at the solid's display deflection "
+                     f"{deflection:.4g} (FreeCAD's): built again, every face checked at it too")
+        reach = reach.meshing_at(deflection)
+    assert best is not None
+    _, records, shape, validity, warnings, unmeshed, deflection = best
+    if unmeshed:
+        warnings.append(f"{_counted_faces(len(unmeshed))} without triangles at the solid's display deflection "
+                        f"{deflection:.4g} (FreeCAD's): holes in a viewer")
+    # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
+    records = match_faces(records, _faces_of(shape), network)
+    if validity is None:  # (the solid's was measured already: BRepCheck and the volume, a second time for nothing)
+        validity = shape_validity(shape)
+    if open_mesh:
+        warnings.append("the mesh is open: the result is a shell, not a solid")
+    elif not validity.ok:
+        warnings.append(f"result is not a valid closed solid: {validity}")
+    n_bad = sum(r.status == FaceStatus.FAILED or r.face is None for r in records)
+    if n_bad:
+        warnings.append(f"{n_bad} of {len(records)} parts have no face in the result: do not trust its volume")
+    for w in warnings:
+        log.warning("build_solid: %s", w)
+    return BrepResult(occ=shape, faces=tuple(records), validity=validity, geometry=geo, warnings=tuple(warnings))
+
+
+def _counted_faces(n: int) -> str:
+    return f"{n} face" if n == 1 else f"{n} faces"
+
+
+def _assembled(network: CurveNetwork, geo: NetworkGeometry, surfaces: Mapping, models: Mapping, reach: Reach,
+               tolerance: float, kinds: dict, areas: dict, open_mesh: bool, warnings: list,
+               progress: Callable[[int, int, str], None] | None) -> tuple[list, object, Validity | None]:
+    """Every part's face on fresh shared edges, assembled, mended and healed: ``(records, shape, validity)``, the
+    validity where it was measured (None when a later step changed the shape)."""
+    edges = shared_topology(network, geo, warnings)
+    context = ShapeBuild_ReShape()
+    fill_budget = FillingBudget(FILLING_ATTEMPTS)  # (counted, not timed: the same on every machine, issue 25)
     records = []
     for p in network.parts.tolist():
         job = _face_job(p, network, geo, surfaces, models, edges, context, tolerance=tolerance,
@@ -106,26 +164,12 @@ def build_solid(network: CurveNetwork, surfaces: Mapping, *, tolerance: float,
     if not faces:
         first = next((r.message for r in records if r.message), "")
         raise BrepError(f"none of the {len(records)} parts got a face (first: {first})")
-    open_mesh = bool(np.any(network.edge_parts[:, 1] == OUTSIDE))
     shape = assemble(faces, tolerance, open_mesh, warnings)
     mend_faces(shape, tolerance, warnings)
     shape, validity = _healed(shape, tolerance, warnings)
     if lift_planar_edges(shape, tolerance):  # (what a STEP reader makes of a plane: bench/brep.md, read-back)
         validity = None
-    # Map records to the faces that ended up in the shape (ShapeFix may rebuild some).
-    records = match_faces(records, _faces_of(shape), network)
-    if validity is None:  # (the solid's was measured already: BRepCheck and the volume, a second time for nothing)
-        validity = shape_validity(shape)
-    if open_mesh:
-        warnings.append("the mesh is open: the result is a shell, not a solid")
-    elif not validity.ok:
-        warnings.append(f"result is not a valid closed solid: {validity}")
-    n_bad = sum(r.status == FaceStatus.FAILED or r.face is None for r in records)
-    if n_bad:
-        warnings.append(f"{n_bad} of {len(records)} parts have no face in the result: do not trust its volume")
-    for w in warnings:
-        log.warning("build_solid: %s", w)
-    return BrepResult(occ=shape, faces=tuple(records), validity=validity, geometry=geo, warnings=tuple(warnings))
+    return records, shape, validity
 
 
 def _surface_models(network: CurveNetwork, surfaces: Mapping) -> dict[int, SurfaceModel | None]:

@@ -8,7 +8,7 @@ and the fallbacks after them, are :mod:`recon.brep._strategies`.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from OCP.Bnd import Bnd_Box
@@ -83,13 +83,23 @@ class Reach:
     lo: np.ndarray
     hi: np.ndarray
     margin: float
+    #: Linear deflections a face must get triangles at (:meth:`unmeshable`): FreeCAD's for the mesh's box, first
+    deflections: tuple[float, ...]
 
     @classmethod
     def of(cls, points, tolerance: float) -> Reach:
         """The reach for a mesh whose points (or a sample of them holding its extremes) are ``points (k, 3)``."""
+        from ._tessellate import box_display_deflection
+
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         lo, hi = pts.min(axis=0), pts.max(axis=0)
-        return cls(lo, hi, reach_margin(tolerance, float(np.linalg.norm(hi - lo))))
+        return cls(lo, hi, reach_margin(tolerance, float(np.linalg.norm(hi - lo))), (box_display_deflection(lo, hi),))
+
+    def meshing_at(self, deflection: float) -> Reach:
+        """This reach, its faces also required to mesh at ``deflection``: FreeCAD's for a built solid, whose box
+        (OpenCascade's, B-spline poles and tolerances included) is not the mesh's, and a face can mesh at one
+        deflection and not at another a few per cent away (bench/brep.md, stop 34)."""
+        return replace(self, deflections=self.deflections + (float(deflection),))
 
     def outside(self, face) -> float:
         """How far ``face`` reaches outside the mesh's box (≤ 0 within it), from a box that holds it.
@@ -122,19 +132,22 @@ class Reach:
 
     def unmeshable(self, face) -> bool:
         """Whether OpenCascade's mesher leaves ``face`` without a triangle at FreeCAD's display settings for this mesh
-        (a hole in every viewer and every STL export; issue 25). Meshed on a copy, as
-        :func:`recon.brep._tessellate.unmeshed_faces` meshes the result."""
+        (a hole in every viewer and every STL export; issue 25), or at any other of :attr:`deflections`. Meshed on a
+        copy, as :func:`recon.brep._tessellate.unmeshed_faces` meshes the result."""
         from OCP.BRepBuilderAPI import BRepBuilderAPI_Copy
         from OCP.BRepMesh import BRepMesh_IncrementalMesh
 
-        from ._tessellate import DISPLAY_ANGLE, box_display_deflection, has_triangles
+        from ._tessellate import DISPLAY_ANGLE, has_triangles
 
-        try:
-            copy = TopoDS.Face_s(BRepBuilderAPI_Copy(face, True, False).Shape())
-            BRepMesh_IncrementalMesh(copy, box_display_deflection(self.lo, self.hi), False, DISPLAY_ANGLE, True)
-        except Exception:  # noqa: BLE001  (OCC raises Standard_Failure: then the face got no triangles)
-            return True
-        return not has_triangles(copy)
+        for deflection in self.deflections:
+            try:
+                copy = TopoDS.Face_s(BRepBuilderAPI_Copy(face, True, False).Shape())
+                BRepMesh_IncrementalMesh(copy, deflection, False, DISPLAY_ANGLE, True)
+            except Exception:  # noqa: BLE001  (OCC raises Standard_Failure: then the face got no triangles)
+                return True
+            if not has_triangles(copy):
+                return True
+        return False
 
     def wild(self, far: float) -> bool:
         """Whether a face reaching ``far`` outside is wild: farther than :data:`REACH_MESHED` diagonals, where
