@@ -514,6 +514,9 @@ def _weak_dropped(at: _Atoms, regions: list, notes: list) -> list:
     return kept
 
 
+#: Rounds of taking a free-form face whole: the first joins its pieces, the second the flat patches the joined face
+#: then surrounds (each piece alone did not).
+ENCLOSED_ROUNDS = 2
 #: A CAD part has few faces of one triangle that are not amid planes (a triangular face between them); beyond this
 #: share of the faces they are pieces of a free-form face the exact path did not join.
 SINGLE_SHARE = 0.05
@@ -600,16 +603,20 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         fits[p] = fit_plane(V[np.unique(F[rest])], tolerance=tolerance)
         labels[rest] = p
     loose = _loose_singles(mesh, labels, fits)
-    if loose.any() or any(f.type == "bspline" for f in fits.values()):
-        # a free-form face in pieces, the coincidental curved faces among them taken back: whole if a B-spline holds it
-        pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+    # a free-form face in pieces, the coincidental curved faces among them taken back: whole if a B-spline holds it;
+    # a second round takes the flat patches the whole face now surrounds (the pieces did not, each alone)
+    for _ in range(ENCLOSED_ROUNDS):
+        if not (loose.any() or any(f.type == "bspline" for f in fits.values())):
+            break
         whole = enclosed_free_form(labels, [fits[p].type for p in range(len(fits))], pairs,
                                    np.einsum("ij,ij->i", *mesh.face_normals[pairs.T]) >= COS_CREASE, loose,
                                    lambda tris: _bspline_through(V, F, tris, tolerance))
+        if not whole:
+            break
         labels, fits = _relabelled(labels, fits, whole)
         loose = _loose_singles(mesh, labels, fits)
-        if whole:
-            notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
+        notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
     why = _gives_up(mesh, labels, fits, int(loose.sum()))
     if why:
         log.info("exact: %s", why)

@@ -7,7 +7,8 @@ hundreds of small coincidental curved faces there, and the single triangles betw
 edges, only the free-form pieces (loose single triangles and B-spline faces) and the planes these border are enclosed by the free-form surface:
 they are joined with it, and the whole is one face when a B-spline through all its vertices holds them within the
 run's tolerance. A true analytic face tangent to some other face beside the free-form one is never enclosed, and a
-plane of more than two triangles is never taken (a CAD export draws a free-form face with hardly any flat pair).
+plane of more than two triangles is taken only when the free-form pieces surround it across smooth edges alone (a CAD
+export draws a free-form face with hardly any flat pair; a plane face of a part meets some other face or a crease).
 numpy/scipy only; the B-spline is fitted by the caller's ``fit_piece``.
 """
 
@@ -52,7 +53,12 @@ def enclosed_free_form(labels: np.ndarray, kinds: list, pairs: np.ndarray, smoot
     count = np.bincount(labels, minlength=k)
     a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
     seed = loose | np.array([t == "bspline" for t in kinds])
-    proven = np.array([t == "plane" and c > 2 for t, c in zip(kinds, count)])
+    # a plane of more triangles is proven, unless the free-form pieces surround it across smooth edges alone: a flat
+    # patch of a few triangles inside a loft's wall, which no face of a part would be
+    walled = np.ones(k, bool)
+    walled[a[(a != b) & (~smooth | ~seed[b])]] = False  # an edge across a crease, or to a face that is no piece
+    walled[b[(a != b) & (~smooth | ~seed[a])]] = False
+    proven = np.array([t == "plane" and c > 2 for t, c in zip(kinds, count)]) & ~walled
     # the planes the free-form pieces themselves border: a piece of the free-form face along such a plane's edge
     # borders it too (a loft's wall may meet its end cap at less than the crease angle)
     rim = np.zeros(k, bool)
