@@ -64,23 +64,50 @@ def test_a_notch_drawn_as_three_quads_is_its_cylinder_not_a_sphere_nor_planes():
     assert dict(Counter(f.type for f in found.fits.values())) == {"cylinder": 2, "plane": 7}
 
 
-@pytest.mark.parametrize("seed", [6, 19, 20, 35, 36, 56, 78])
+@pytest.mark.parametrize("seed", [6, 19, 20, 35, 36, 56, 78, 122])
 def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     """Parts whose faces the first seeds split or merged with a neighbour's strips: a slot's side with the end strips
     of its half-cylinders (36), cylinders along a torus (19), fillet chains (6), a cylinder drawn as a sphere (56), two
     counterbore arcs of three quads dropped as planes (20), a pocket rim's fillet tori drawn as ~30 bands each of
     cones, cylinders and spheres (35: 88 faces of 35 before its bands were joined), a chamfered polygon prism whose
-    10 corner faces are one triangle each (78: the path gave up, taking them for pieces of a free-form face)."""
+    10 corner faces are one triangle each (78: the path gave up, taking them for pieces of a free-form face), a loft's
+    wall of 3,152 triangles whose B-spline missed the tolerance on the coarse grid and whose flat pairs stayed planes
+    (122: the path gave up)."""
+    found, true, meta = _corpus_faces(seed, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"]
+    assert dict(Counter(f.type for f in found.fits.values())) == dict(Counter(meta["face_types"]))
+    for p in range(int(found.labels.max()) + 1):  # every face is one true face
+        assert len(np.unique(true[found.labels == p])) == 1
+    assert not [n for n in found.notes if "not proven" in n]
+
+
+def test_a_variable_fillet_cut_into_a_cone_and_planes_is_not_proven(tmp_path):
+    """Export seed 65: a variable-radius fillet (one B-spline face of 8 triangles) lies on a cone to round-off but for
+    its end quads, which stay planes meeting the cone at a kink of 1.2-1.3 degrees (their round-off tilt: 0.3-0.8):
+    26 faces for 24, and the notes say the count is not proven there."""
+    found, true, meta = _corpus_faces(65, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"] + 2
+    assert [n for n in found.notes if n.startswith("face count not proven: 2 edge(s)")]
+
+
+def _corpus_faces(seed: int, tmp_path):
+    """The exact path's faces of an export seed, the true face of every triangle and the part's metadata."""
     from bench.corpus.truth import materialise
 
     truth = materialise(seed, "export", tmp_path)
-    mesh = load_mesh(str(truth.mesh))
-    found = _faces(mesh)
-    true = np.load(truth.mesh.with_suffix(".labels.npy"))  # the true face of every triangle
-    assert int(found.labels.max()) + 1 == truth.meta["faces"]
-    assert dict(Counter(f.type for f in found.fits.values())) == dict(Counter(truth.meta["face_types"]))
+    found = _faces(load_mesh(str(truth.mesh)))
+    true = np.load(truth.mesh.with_suffix(".labels.npy"))
     assert len(true) == len(found.labels)  # the loader keeps an exported mesh's triangles in order
-    for p in range(int(found.labels.max()) + 1):  # every face is one true face
+    return found, true, truth.meta
+
+
+def test_a_fillet_corner_of_thirteen_vertices_is_its_torus(tmp_path):
+    """Export seed 48: a torus of 14 triangles (13 vertices) came out as 2 cylinders, a sphere and 2 planes, because
+    its torus fit stopped on the evaluation budget at a spindle torus; continued, it holds them to round-off. (A cone
+    of 3 quads there is still taken as a cylinder: the count and the faces are right, one type is not.)"""
+    found, true, meta = _corpus_faces(48, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"]
+    for p in range(int(found.labels.max()) + 1):
         assert len(np.unique(true[found.labels == p])) == 1
 
 

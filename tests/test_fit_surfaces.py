@@ -617,3 +617,30 @@ def test_the_trust_region_loop_s_svd_is_scipy_s_bit_for_bit(shape):
     a = np.random.default_rng(5).standard_normal(shape)
     for got, want in zip(_svd(a), scipy.linalg.svd(a, full_matrices=False)):
         assert np.array_equal(got, want)
+
+
+def test_a_narrow_exact_torus_patch_is_its_torus_not_a_spindle():
+    """13 float32 vertices of a fillet torus (R 6.8246, r 4.6428) spanning 4.6° of longitude and 37.6° of its meridian,
+    with normals from their own triangles (off by up to 30°), as export seed 48 draws one: the refinement's budget stops
+    at a spindle torus (refused); with ``exact`` it continues to the torus, every vertex on it to float32 round-off."""
+    from scipy.spatial import Delaunay
+
+    from recon.segment._context import own_normals
+
+    big, small = 6.8246, 4.6428
+    grid = np.radians([(90, 0), (90, -12.52), (90, -25.04), (90, -37.56), (94.62, 0), (93.08, 0), (91.54, 0),
+                       (94.27, -10.09), (91.84, -28.84), (93.23, -20.2), (93.23, -10.09), (91.84, -10.09),
+                       (91.84, -20.2)])
+    phi, theta = grid[:, 0], grid[:, 1]
+    pts = np.c_[(big + small * np.cos(theta)) * np.cos(phi), (big + small * np.cos(theta)) * np.sin(phi),
+                small * np.sin(theta)] + [5.742, -5.459, 23.784]
+    pts = pts.astype(np.float32).astype(float)
+    tri = Delaunay(grid).simplices
+    nrm = own_normals(pts, tri, tri, len(pts))
+    eps = 2e-6 * np.abs(pts).max()  # float32 round-off of the coordinates, with margin (recon.segment.roundoff)
+    assert not fit_torus(pts, nrm, tolerance=eps)
+    fit = fit_torus(pts, nrm, tolerance=eps, exact=True)
+    assert fit
+    assert fit.params["major_radius"] == pytest.approx(big, abs=1e-3)
+    assert fit.params["minor_radius"] == pytest.approx(small, abs=1e-4)
+    assert fit.deviation["max"] <= eps
