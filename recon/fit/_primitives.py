@@ -523,8 +523,8 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         See :func:`fit_plane`.
     exact : bool
         The points lie on the surface to round-off (a CAD export's vertices): a refinement that its evaluation budget
-        stopped at a spindle torus is continued (plain least squares, nothing to down-weight) up to
-        :data:`_EXACT_NFEV` evaluations, as it was still descending a valley, not at the answer.
+        stopped at a spindle torus is continued (plain least squares, nothing to down-weight) while it still gains,
+        up to :data:`_EXACT_NFEV` evaluations, as it was still descending a valley, not at the answer.
 
     Returns
     -------
@@ -567,8 +567,6 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, r_major0, r_minor0])
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
     if exact and res.status == 0 and res.x[5] < res.x[6] and len(q) >= len(x0):
-        from scipy.optimize import least_squares  # only here: see _solve
-
         res = _continued(fun, jac, res.x, q)
     d = _direction(d0, e1, e2, res.x[0], res.x[1])
     center = c0 + res.x[2:5] + mean

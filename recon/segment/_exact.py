@@ -617,29 +617,31 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         labels, fits = _relabelled(labels, fits, whole)
         loose = _loose_singles(mesh, labels, fits)
         notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
-    why = _gives_up(mesh, labels, fits, int(loose.sum()))
+    why = _gives_up(pairs, labels, fits, int(loose.sum()))
     if why:
         log.info("exact: %s", why)
         return None
-    return ExactFaces(labels, fits, notes + _kinks(mesh, labels, fits, eps))
+    return ExactFaces(labels, fits, notes + _kinks(mesh, pairs, labels, fits, eps))
 
 
-def _kinks(mesh: Mesh, labels: np.ndarray, fits: dict, eps: float) -> list[str]:
+def _kinks(mesh: Mesh, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: float) -> list[str]:
     """A note when a plane of one or two triangles meets a curved face across a smooth edge at a kink: the curved
     surface's normal at the edge's ends turns from the triangle's by more than the triangle's own round-off tilt
     (2 eps over its shortest height). A blend meets the faces it rounds tangentially; a strip's end quad at a kink
     is where a variable-radius blend (a B-spline no analytic surface holds) was cut into a cone and planes, so the
     face count there is not proven (measured: bench/exact.md)."""
     V, F = mesh.vertices, mesh.faces
-    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
     ends = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
     count = np.bincount(labels)
     n = mesh.face_normals
+    small_plane = np.array([fits[p].type == "plane" and count[p] <= 2 for p in range(len(fits))])
+    la, lb = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    # only smooth edges between two faces, one of them a plane of one or two triangles: the rest cannot be a kink
+    near = (la != lb) & (small_plane[la] | small_plane[lb])
+    near &= np.einsum("ij,ij->i", n[pairs[:, 0]], n[pairs[:, 1]]) >= COS_CREASE
     found = 0
-    for (t, u), e in zip(pairs, ends):
+    for (t, u), e in zip(pairs[near], ends[near]):
         a, b = int(labels[t]), int(labels[u])
-        if a == b or float(n[t] @ n[u]) < COS_CREASE:
-            continue
         for tri, p, c in ((t, a, b), (u, b, a)):
             if fits[p].type != "plane" or count[p] > 2 or fits[c].type not in KIND_PARAMS:
                 continue
@@ -665,9 +667,8 @@ def _relabelled(labels: np.ndarray, fits: dict, whole: list) -> tuple[np.ndarray
     return labels.astype(np.int64), {i: fits[int(p)] for i, p in enumerate(used)}
 
 
-def _gives_up(mesh: Mesh, labels: np.ndarray, fits: dict, loose: int) -> str:
-    """Why the faces found do not explain the mesh ("" when they do)."""
-    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+def _gives_up(pairs: np.ndarray, labels: np.ndarray, fits: dict, loose: int) -> str:
+    """Why the faces found do not explain the mesh ("" when they do); ``pairs`` its triangles sharing an edge."""
     bounded = np.zeros(len(fits), bool)
     cut = labels[pairs[:, 0]] != labels[pairs[:, 1]]
     bounded[labels[pairs[cut].ravel()]] = True
