@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import json
 import os
+import contextlib
 import resource
+import signal
 import subprocess
 import sys
 import tempfile
@@ -90,8 +92,24 @@ def check_solid(shape) -> dict:
     return {"solids": solids, "free_edges": free, "brep_valid": valid, "valid": solids == 1 and valid and free == 0}
 
 
-def measure(truth, ours_step: Path, seed: int) -> dict:
-    """The figures of our STEP against the true one (see the module docstring); % of the true diagonal."""
+@contextlib.contextmanager
+def _time_limit(seconds: float):
+    """TimeoutError after ``seconds`` of wall time (a SIGALRM: the measurement runs in its process's main thread)."""
+    def expire(signum, frame):
+        raise TimeoutError(f"measuring took over {seconds:g} s")
+    old = signal.signal(signal.SIGALRM, expire)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def measure(truth, ours_step: Path, seed: int, row: dict | None = None) -> dict:
+    """The figures of our STEP against the true one (see the module docstring); % of the true diagonal.
+
+    Fills ``row`` as it goes, so that what was measured before an error or a time limit stays in it."""
     import trimesh
 
     from recon.brep._distance import BrepDistance
@@ -99,7 +117,8 @@ def measure(truth, ours_step: Path, seed: int) -> dict:
     rng = np.random.default_rng(seed)
     ours, _ = read_step(ours_step)
     true, _ = read_step(truth.step)
-    row = check_solid(ours)
+    row = {} if row is None else row
+    row.update(check_solid(ours))
     a, b = BrepDistance(ours, rng=rng), BrepDistance(true, rng=rng)
     diag = truth.meta["diagonal"]
     row["faces_ours"] = len(a.types)
@@ -190,7 +209,9 @@ def _recon_row(truth, seed: int, regime: str, *, keep: Path | None, timeout: flo
                 row["report_error"] = f"{type(err).__name__}: {err}"[:200]
         if out.exists():
             try:
-                row.update(measure(truth, out, seed))
+                # a face OCC cannot classify points in can take hours (export seed 13): the same limit as recon's
+                with _time_limit(timeout):
+                    measure(truth, out, seed, row)
             except Exception as err:  # a measurement failing is recorded beside recon's own outcome
                 row["measure_error"] = f"{type(err).__name__}: {err}"[:300]
             if keep is not None:
