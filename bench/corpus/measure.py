@@ -92,7 +92,8 @@ def check_solid(shape) -> dict:
 
 def _measured(truth, ours_step: Path, seed: int, timeout: float) -> dict:
     """:func:`measure` in a forked child killed after ``timeout`` s: one OCC face classification can loop for hours
-    (export seed 13's STEP), and no signal reaches Python inside it. On a timeout only the solid check is kept."""
+    (export seed 13's STEP), and no signal reaches Python inside it. The child sends the solid check as soon as it
+    has it, so a timeout keeps that much."""
     import multiprocessing
 
     ctx = multiprocessing.get_context("fork")
@@ -100,26 +101,34 @@ def _measured(truth, ours_step: Path, seed: int, timeout: float) -> dict:
 
     def child():
         try:
-            send.send(measure(truth, ours_step, seed))
+            send.send(measure(truth, ours_step, seed, checked=send.send))
         except Exception as err:
             send.send({"measure_error": f"{type(err).__name__}: {err}"[:300]})
+        send.send(None)  # done
 
     proc = ctx.Process(target=child, daemon=True)
     proc.start()
     send.close()  # the child's end only: a child that dies unheard gives EOF here, not a wait
-    ready = recv.poll(timeout)
-    if ready:
-        row = recv.recv()
-        proc.join()
-        return row
+    row: dict = {}
+    deadline = time.monotonic() + timeout
+    try:
+        while recv.poll(max(0.0, deadline - time.monotonic())):
+            part = recv.recv()
+            if part is None:
+                break
+            row.update(part)
+        else:
+            row["measure_error"] = f"TimeoutError: measuring took over {timeout:g} s"
+    except EOFError:
+        row["measure_error"] = f"the measuring process died (exit {proc.exitcode})"
     proc.kill()
     proc.join()
-    from recon.brep._step_read import read_step
-    return {**check_solid(read_step(ours_step)[0]), "measure_error": f"TimeoutError: measuring took over {timeout:g} s"}
+    return row
 
 
-def measure(truth, ours_step: Path, seed: int) -> dict:
-    """The figures of our STEP against the true one (see the module docstring); % of the true diagonal."""
+def measure(truth, ours_step: Path, seed: int, checked=None) -> dict:
+    """The figures of our STEP against the true one (see the module docstring); % of the true diagonal.
+    ``checked``: called with the solid check's figures as soon as they are known."""
     import trimesh
 
     from recon.brep._distance import BrepDistance
@@ -128,6 +137,8 @@ def measure(truth, ours_step: Path, seed: int) -> dict:
     ours, _ = read_step(ours_step)
     true, _ = read_step(truth.step)
     row = check_solid(ours)
+    if checked is not None:
+        checked(dict(row))
     a, b = BrepDistance(ours, rng=rng), BrepDistance(true, rng=rng)
     diag = truth.meta["diagonal"]
     row["faces_ours"] = len(a.types)

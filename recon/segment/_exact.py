@@ -643,7 +643,7 @@ def _kinks(mesh: Mesh, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: f
     for (t, u), e in zip(pairs[near], ends[near]):
         a, b = int(labels[t]), int(labels[u])
         for tri, p, c in ((t, a, b), (u, b, a)):
-            if fits[p].type != "plane" or count[p] > 2 or fits[c].type not in KIND_PARAMS:
+            if not small_plane[p] or fits[c].type not in KIND_PARAMS:
                 continue
             P = V[F[tri]]
             height = np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0])) / np.linalg.norm(P - P[[1, 2, 0]], axis=1).max()
