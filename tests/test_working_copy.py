@@ -96,7 +96,12 @@ def test_convert_a_noisy_box(noisy_box):
     assert len(res.labels) == len(noisy_box.faces)
     assert rep["validity"]["valid"] and rep["validity"]["closed"] and rep["validity"]["n_solids"] == 1
     planes = [f for f in rep["faces"] if f["surface"] == "plane"]
-    assert len(planes) == 6
+    # the copy bevels the creases; a strip narrower than the feature window that the planes hold is not a face
+    assert len(planes) == 6 and len(rep["faces"]) == 6
+    # each side's plane is fitted to the n input vertices it covers (noise σ along it): its offset is off by σ/√n
+    # (n: the smallest side's share of the vertices), so the volume by at most the area times 3 such errors
+    area, n = 2 * (12 * 9 + 12 * 6 + 9 * 6), len(noisy_box.vertices) * (9 * 6) / (2 * (12 * 9 + 12 * 6 + 9 * 6))
+    assert abs(rep["validity"]["volume"] - 12 * 9 * 6) <= area * 3 * SIGMA / np.sqrt(n)
     # the six sides, each a plane of its true area less at most a band one copy edge wide shared with the strips the
     # copy bevels along its creases (half of it each side), and more by at most the tolerance around its rim
     edge, tol = rep["working_copy"]["mean_edge"], rep["tolerance"]

@@ -9,6 +9,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..features import EDGE_FACTOR, NOISE_FACTOR
 from ..fit import ACCEPT_MAX_FACTOR, MISFIT_SCALE, fit_plane, residual_scale, surface_normals
 from ._context import (ANALYTIC, EXACT_MISFIT, EXACT_RESIDUAL, GROW_ANGLE_DEG, MIN_FLAT_VERTICES, MIN_PART_VERTICES,
                        SegmentContext, fit_parts)
@@ -64,8 +65,10 @@ def dissolve_explained(labels: np.ndarray, fits: dict, ctx: SegmentContext) -> n
     triangles away, whatever their own surface, and receive none.
 
     Such a face is pieces of its neighbours that a surface of its own also holds within the noise, which no
-    merge can take in (their union with either neighbour fits neither). Returns ``labels`` itself when nothing
-    moved.
+    merge can take in (their union with either neighbour fits neither). On a noisy mesh a face narrower than the
+    feature window whose vertices all lie within tolerance of its neighbours' surfaces is one too, whatever its
+    triangles' normals (:func:`_crease_strips`): a crease the mesh's triangles bevel. Returns ``labels`` itself
+    when nothing moved.
     """
     return _grow(labels, fits, ctx, dissolve=True)
 
@@ -140,6 +143,11 @@ def _grow(labels: np.ndarray, fits: dict, ctx: SegmentContext, *, dissolve: bool
     misfit, exact = _misfit_faces(labels, fits, analytic, ctx)
     on = _on_surface(fits, ctx)
     explained = _explained_faces(labels, analytic, ctx.pairs, on) if dissolve else np.zeros(0, dtype=np.int64)
+    if dissolve and ctx.noise is not None:
+        strips = _crease_strips(labels, np.setdiff1d(analytic, explained), analytic, fits, ctx)
+        if len(strips):
+            explained = np.union1d(explained, strips)
+            on = _by_position(on, fits, ctx, np.isin(labels, strips))
     if dissolve and not len(explained):
         return labels
     receiving = np.setdiff1d(analytic, explained)
@@ -306,3 +314,53 @@ def _maybe_held(tris: np.ndarray, around: list, on: OnSurface) -> bool:
         if held.all():
             return True
     return False
+
+
+def _crease_strips(labels: np.ndarray, candidates: np.ndarray, analytic: np.ndarray, fits: dict,
+                   ctx: SegmentContext) -> np.ndarray:
+    """The faces among ``candidates`` of a noisy mesh that are a crease its triangles bevel, not a face: narrower
+    (area / length) than the feature window ``max(EDGE_FACTOR · h, NOISE_FACTOR · σ)``, and with every vertex within
+    the tolerance of a neighbouring analytic face's (``analytic``) surface.
+
+    Nothing narrower than the window is told apart from the noise (:mod:`recon.features`), and a strip whose
+    points the neighbours' surfaces hold within the tolerance is explained by their intersection; its triangles
+    straddle the crease, so their normals turn from both surfaces (``GROW_ANGLE_DEG``) and :func:`_explained_faces`
+    does not see it. A fillet wider than the window, or bulging farther than the tolerance from its neighbours'
+    intersection, stays.
+    """
+    mesh = ctx.mesh
+    V, F, areas = mesh.vertices, mesh.faces, mesh.face_areas
+    window = max(EDGE_FACTOR * mesh.mean_edge_length, NOISE_FACTOR * float(ctx.noise))
+    a, b = labels[ctx.pairs[:, 0]], labels[ctx.pairs[:, 1]]
+    cross = a != b
+    out = []
+    for p in candidates.tolist():
+        tris = np.flatnonzero(labels == p)
+        ids = ctx.vertices(tris)
+        pts = V[ids] - V[ids].mean(axis=0)
+        length = float(np.ptp(pts @ np.linalg.svd(pts, full_matrices=False)[2][0]))
+        if not length > 0 or areas[tris].sum() / length > window:
+            continue
+        around = np.intersect1d(np.r_[b[cross & (a == p)], a[cross & (b == p)]], analytic).tolist()
+        if len(around) < 2:
+            continue
+        d = np.min([np.abs(fits[q].distance(V[ids])) for q in around], axis=0)
+        if d.max() <= ctx.tolerance:
+            out.append(p)
+    return np.asarray(out, dtype=np.int64)
+
+
+def _by_position(on: OnSurface, fits: dict, ctx: SegmentContext, strip: np.ndarray) -> OnSurface:
+    """``on``, but for the triangles where ``strip`` is set a triangle lies on a surface when its vertices are
+    within the tolerance of it, whatever its normal (a bevelled crease's triangles turn from both surfaces)."""
+    V, F, tolerance = ctx.mesh.vertices, ctx.mesh.faces, ctx.tolerance
+
+    def on_strip(q, tris, slack=0.0):
+        out = on(q, tris, slack)
+        loose = strip[tris]
+        if loose.any():
+            d = np.abs(fits[q].distance(V[F[tris[loose]]].reshape(-1, 3))).reshape(-1, 3).max(axis=1)
+            out[loose] = np.where(d <= tolerance * (1.0 + slack), d, np.inf)
+        return out
+
+    return on_strip
