@@ -139,3 +139,26 @@ def test_triangle_soup_left_open():
     assert len(boundary_loops(mesh)) == len(mesh.faces)  # a soup: a loop per triangle
     closed, report = close_holes(mesh)
     assert closed is mesh and report.closed == 0
+
+
+def test_a_crack_left_by_a_dropped_cap_is_zipped_not_filled():
+    """An exporter's cap triangle (a corner on its opposite edge: zero area) is dropped in cleaning, leaving a loop of
+    its three corners that encloses nothing (export seeds 31, 66, 137 crashed filling it). Zipping splits the
+    neighbour across the long edge at the middle corner: the cube closes with its exact volume and area, no triangle
+    added off the input's, and every edge has two triangles running opposite ways."""
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    V, F = np.asarray(box.vertices, dtype=float), np.asarray(box.faces)
+    t = 0
+    a, c, x = F[t]
+    mid = len(V)
+    V = np.vstack([V, 0.5 * (V[a] + V[c])])
+    # triangle t split at the midpoint of its edge (a, c) only on its own side; the cap (c, mid, a) closes it as read
+    F = np.vstack([np.delete(F, t, axis=0), [[a, mid, x], [mid, c, x], [c, mid, a]]])
+    mesh = clean_mesh(V, F)
+    assert mesh.report.degenerate_faces == 1 and len(boundary_loops(mesh)) == 1
+    out, report = close_holes(mesh)
+    assert (report.loops, report.closed, report.area_added) == (1, 1, 0.0)
+    assert out.report.boundary_edges == 0 and len(out.faces) == 14
+    assert abs(out.area - 6.0) < 1e-12 and abs(trimesh.Trimesh(out.vertices, out.faces).volume - 1.0) < 1e-12
+    directed = {(int(p), int(q)) for row in out.faces for p, q in zip(row, np.roll(row, -1))}
+    assert len(directed) == 3 * len(out.faces) and all((q, p) in directed for p, q in directed)

@@ -579,23 +579,63 @@ def _outward(mesh: Mesh) -> Mesh:
     return dataclasses.replace(mesh, faces=F)
 
 
+def _zip_cracks(mesh: Mesh, loops: list[np.ndarray]) -> tuple[Mesh, int]:
+    """``mesh`` with its cracks zipped, and how many loops that closed.
+
+    A crack is a loop whose rim vertices lie on its other edges: cleaning drops a triangle whose corner sits on its
+    opposite edge (zero area: an exporter's cap), leaving its three corners a loop that encloses nothing. Each loop
+    edge is split at the loop's vertices within the weld tolerance of it (closer than that they would be one point),
+    its triangle fanned from its third corner: the pieces lie on the input's triangle (whose input triangle they
+    keep), and pair off with the other side's edges. The first piece takes the split triangle's place."""
+    V, F, tol = mesh.vertices, mesh.faces, mesh.report.weld_tolerance
+    directed = {(int(a), int(b)): t for t, row in enumerate(F.tolist()) for a, b in zip(row, row[1:] + row[:1])}
+    rows, pieces, source, comp, split = F.copy(), [], [], [], set()
+    for loop in loops:
+        for u, v in zip(loop.tolist(), np.roll(loop, -1).tolist()):
+            d = V[v] - V[u]
+            t = (V[loop] - V[u]) @ d / max(float(d @ d), 1e-300)
+            off = np.linalg.norm(V[loop] - V[u] - t[:, None] * d, axis=1)
+            on = (t > 0) & (t < 1) & (off <= tol) & (loop != u) & (loop != v)
+            tri = directed.get((u, v))
+            if not on.any() or tri is None or tri in split:
+                continue
+            split.add(tri)
+            x = next(int(w) for w in F[tri] if w not in (u, v))
+            chain = [u, *loop[on][np.argsort(t[on])].tolist(), v]
+            rows[tri] = (chain[0], chain[1], x)
+            pieces += [(a, b, x) for a, b in zip(chain[1:-1], chain[2:])]
+            source.append(np.full(len(chain) - 2, mesh.source_face[tri]))
+            comp.append(np.full(len(chain) - 2, mesh.component[tri]))
+    if not pieces:
+        return mesh, 0
+    out = Mesh(V, np.vstack([rows, np.asarray(pieces, dtype=F.dtype)]), np.concatenate([mesh.source_face, *source]),
+               mesh.n_input_faces, np.concatenate([mesh.component, *comp]), mesh.report)
+    return out, len(loops) - len(boundary_loops(out))
+
+
 def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
     """``mesh`` with its small holes closed over (module doc), and what was closed; a mesh without boundary loops
     comes back as the same object."""
     loops = boundary_loops(mesh)
-    nothing = HoleReport(len(loops), 0, np.zeros(len(mesh.faces), dtype=bool), len(mesh.vertices), 0.0)
     if not loops:
+        return mesh, HoleReport(0, 0, np.zeros(len(mesh.faces), dtype=bool), len(mesh.vertices), 0.0)
+    mesh, zipped = _zip_cracks(mesh, loops)
+    if zipped:
+        log.info("%d cracks (loops enclosing no area) zipped", zipped)
+        loops = boundary_loops(mesh)
+    nothing = HoleReport(len(loops) + zipped, zipped, np.zeros(len(mesh.faces), dtype=bool), len(mesh.vertices), 0.0)
+    if not loops and not zipped:
         return mesh, nothing
     total = mesh.area
     # a hole is small against its own piece too: a triangle soup's every triangle is a piece whose rim is a loop
     piece_area = np.bincount(mesh.component, weights=mesh.face_areas)
-    verts, tris, comps, closed = [mesh.vertices], [mesh.faces], [mesh.component], 0
+    verts, tris, comps, closed = [mesh.vertices], [mesh.faces], [mesh.component], zipped
     count, adj = len(mesh.vertices), _adjacency(mesh)
     for loop in loops:
         _, axes, area = _frame(mesh.vertices[loop[::-1]], 1.0)
         extent = float(np.linalg.norm(np.ptp(mesh.vertices[loop], axis=0)))
         piece = piece_area[mesh.component[mesh.vertex_faces[int(loop[0])][0]]]
-        if area > HOLE_AREA_SHARE * min(total, piece) or (extent > SMALL_EXTENT * mesh.diagonal
+        if not area > 0 or area > HOLE_AREA_SHARE * min(total, piece) or (extent > SMALL_EXTENT * mesh.diagonal
                                               and _surrounded(mesh, loop, axes[2]) < SURROUND_REACH):
             continue
         got = _fill(mesh, loop, adj)
@@ -623,6 +663,6 @@ def close_holes(mesh: Mesh) -> tuple[Mesh, HoleReport]:
         mesh.report, boundary_edges=int((out.edge_face_count == 1).sum()),
         non_manifold_edges=int((out.edge_face_count > 2).sum())))
     area = float(out.face_areas[added].sum())
-    log.info("%d of %d boundary loops closed over (%d triangles, %.3g %% of the area)", closed, len(loops),
+    log.info("%d of %d boundary loops closed over (%d triangles, %.3g %% of the area)", closed - zipped, len(loops),
              int(added.sum()), 100.0 * area / total)
-    return out, HoleReport(len(loops), closed, added, len(mesh.vertices), area)
+    return out, HoleReport(len(loops) + zipped, closed, added, len(mesh.vertices), area)
