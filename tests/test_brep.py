@@ -922,3 +922,21 @@ def test_a_solid_occ_cannot_orient_is_left_a_shell(monkeypatch):
     shape = shell_mod.assemble([f.wrapped for f in Box(1, 2, 3).faces()], 1e-4, False, warnings)
     assert shape.ShapeType() == TopAbs_SHELL
     assert any("OrientClosedSolid failed" in w for w in warnings)
+
+
+def test_a_shape_occ_cannot_weigh_is_reported_without_volume(monkeypatch):
+    """Export seed 137's read-back shell made ``BRepGProp.VolumeProperties`` raise Standard_ConstructionError, which
+    ended the run as an internal error (exit 3) after the file was written: a shape without a volume is not a solid."""
+    import recon.brep._result as R
+
+    box = Box(2, 3, 4)
+    assert abs(R.shape_validity(box).volume - 24.0) < 1e-9
+
+    class Raising:
+        @staticmethod
+        def VolumeProperties_s(shape, props):
+            raise RuntimeError("Standard_ConstructionError")
+
+    monkeypatch.setattr(R, "BRepGProp", Raising)
+    val = R.shape_validity(box)
+    assert np.isnan(val.volume) and val.valid and val.closed and not val.ok

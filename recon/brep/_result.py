@@ -158,14 +158,18 @@ def shape_validity(shape) -> Validity:
     if type_name == "compound" and n_solids == 0:
         type_name = "compound"
     props = GProp_GProps()
-    BRepGProp.VolumeProperties_s(occ, props)
+    try:
+        BRepGProp.VolumeProperties_s(occ, props)
+        volume = float(props.Mass())
+    except Exception:  # noqa: BLE001  (OCC raises Standard_ConstructionError on a broken shape: it has no volume)
+        volume = float("nan")
     free = free_edge_count(occ)
     return Validity(
         shape_type=type_name,
         valid=bool(BRepCheck_Analyzer(occ).IsValid()),
         closed=free == 0,
         free_edges=free,
-        volume=float(props.Mass()),
+        volume=volume,
         n_faces=count_shapes(occ, TopAbs_FACE),
         n_solids=n_solids,
         n_shells=count_shapes(occ, TopAbs_SHELL),
