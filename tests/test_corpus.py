@@ -243,3 +243,22 @@ def test_a_hanging_measurement_is_cut_at_the_limit_and_keeps_its_solid_check(mon
     assert row["measure_error"].startswith("TimeoutError")
     monkeypatch.setattr(M, "measure", lambda truth, step, seed, checked=None: {"valid": False, "faces_ours": 3})
     assert M._measured(None, None, 0, timeout=30.0) == {"valid": False, "faces_ours": 3}
+
+
+
+def test_a_cone_split_in_halves_on_one_surface_counts_once_in_the_joined_truth(tmp_path):
+    """Export seed 45's countersink is two half-cones on one surface (26 faces): joined, 25 — the count a mesh can
+    prove. The report scores recon's count against both and calls an exit 0 wrong only against the joined one."""
+    from bench.corpus.real import unified_faces
+    from bench.corpus.report import load_rows, summary
+
+    solid, meta = part(45)
+    assert (meta["faces"], unified_faces(solid)) == (26, 25)
+    (tmp_path / "rows").mkdir()
+    for seed, ours in ((45, 25), (46, 24)):
+        row = {"seed": seed, "regime": "export", "status": "ok", "exit": 0, "valid": True, "faces_ours": ours,
+               "faces_true": 26, "faces_true_unified": 25}
+        (tmp_path / "rows" / f"{seed}.json").write_text(json.dumps(row))
+    s = summary(load_rows(tmp_path))["export"]
+    assert (s["exact faces"], s["exact faces, same-surface faces joined"]) == (0.0, 0.5)
+    assert s["exit 0 with a wrong face count (joined)"] == 1
