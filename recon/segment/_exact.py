@@ -27,6 +27,7 @@ from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
+from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_merge import merge_curved
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
@@ -215,7 +216,7 @@ def _chord_points(V: np.ndarray, F: np.ndarray, tris: np.ndarray) -> np.ndarray:
 
 
 #: Round-off per vertex: one distance for every vertex, or an array over the mesh's vertices (a vertex that a found
-#: face's surface holds to round-off may miss a neighbouring face by the STEP edge's tolerance: :func:`_held_slack`).
+#: face's surface holds to round-off may miss a neighbouring face by the STEP edge's tolerance: ``held_slack``).
 Tol = Union[float, np.ndarray]
 
 
@@ -240,27 +241,34 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
                 first: bool = True, above: str | None = None) -> list[SurfaceFit]:
     """The curved surfaces that hold the vertices ``ids`` to round-off and the triangles within the sag, simplest
     first (only the first when ``first``; only types more complex than ``above``); a type needs one vertex more than
-    its parameters. With round-off per vertex, the surface is fitted to the strict vertices only and a type needs
-    more strict vertices than parameters: the loose ones (on a neighbour's surface) are checked, never fitted."""
+    its parameters that it holds to round-off. With round-off per vertex, a type is fitted to the strict vertices
+    when they are enough (the loose ones, on a neighbour's surface, are only checked), else to all of them (a strip
+    whose every vertex is on its rims) within the loosest round-off."""
     ids_local = np.searchsorted(ids, F[tris])
     nrm = own_normals(V, F[tris], ids_local, len(ids))
     e0 = _floor(eps)
     strict = np.arange(len(ids)) if np.ndim(eps) == 0 else np.flatnonzero(eps[ids] <= e0)
-    if len(strict) <= min(KIND_PARAMS.values()):
-        return []
+    sets = {}
+    for key, use, e in ((True, strict, e0), (False, np.arange(len(ids)), float(np.max(eps[ids])) if np.ndim(eps) else e0)):
+        sets[key] = (use[np.linspace(0, len(use) - 1, FIT_POINTS).astype(int)] if len(use) > FIT_POINTS else use, e)
     out = []
     kinds = [k for k, _ in CURVED]
-    pick = strict[np.linspace(0, len(strict) - 1, FIT_POINTS).astype(int)] if len(strict) > FIT_POINTS else strict
-    # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
-    hopeless = impossible_types(V[ids[pick]], e0)
+    hopeless: dict = {}
     for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
-        if len(strict) <= params or kind in hopeless:
+        pick, e = sets[len(strict) > params]
+        if len(pick) <= params:
+            continue
+        # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
+        if e not in hopeless:
+            hopeless[e] = impossible_types(V[ids[pick]], e)
+        if kind in hopeless[e]:
             continue
         try:
-            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e0)
+            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e)
         except (FitError, np.linalg.LinAlgError, ValueError):
             continue
-        if _fits_exactly(fit, V, F, ids, tris, eps, sag):
+        if _fits_exactly(fit, V, F, ids, tris, eps, sag) and (
+                e == e0 or int((np.abs(fit.distance(V[ids])) <= e0).sum()) > params):
             out.append(fit)
             if first:
                 break
@@ -355,6 +363,20 @@ SEED_BUDGET = 64
 SEED_BUDGET_SHARE = 0.1
 
 
+def _chained(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, nbr: list) -> tuple[list, SurfaceFit] | None:
+    """The face grown from a chain of one-triangle atoms through ``s`` (:func:`chain`) that a curved surface holds,
+    when it holds :data:`CHAIN_GROWTH` times the chain's atoms; else None."""
+    c = chain(at, s, free, nbr)
+    if not c:
+        return None
+    ids, tris = at.points(c)
+    fits = _candidates(at.mesh.vertices, at.mesh.faces, ids, tris, eps, sag)
+    if not fits:
+        return None
+    region, fit = _grow(at, list(c), fits[0], free, eps, sag)
+    return (region, fit) if len(region) >= CHAIN_GROWTH * len(c) else None
+
+
 def grow_curved(at: _Atoms, eps: Tol, sag: float, found: list | None = None) -> list[tuple[list, SurfaceFit]]:
     """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
     to round-off, after the regions ``found`` already (kept as they are, their atoms not free). Seeds are the atoms of
@@ -369,10 +391,21 @@ def grow_curved(at: _Atoms, eps: Tol, sag: float, found: list | None = None) -> 
     # inside a curved face first (every neighbour a small atom across no crease), where the rings tell the type
     inner = [sum(len(at.tris[n]) > 2 or not at.smooth(a, n) for n in at.nbrs[a]) for a in range(k)]
     order = sorted((a for a in range(k) if len(at.tris[a]) <= 2), key=lambda a: (inner[a], a))
+    if np.ndim(eps):  # a second pass: only seeds whose rings reach a loose vertex see anything the first did not
+        loose = {a for a in range(k) if free[a] and bool((eps[at.verts[a]] > _floor(eps)).any())}
+        near = loose | {n for a in loose for n in at.nbrs[a]}
+        order = [a for a in order if a in near]
+    nbr = long_edge_neighbours(at.mesh)
     for rings in (True, False):
         failed = 0
         for s in order:
             if not free[s]:
+                continue
+            # a zig-zag strip first: a chain along its long edges, kept when its face grows to CHAIN_GROWTH times it
+            grown = _chained(at, s, free, eps, sag, nbr) if rings and len(at.tris[s]) == 1 else None
+            if grown is not None:
+                free[grown[0]] = False
+                regions.append(grown)
                 continue
             seeded = _seed(at, s, free, eps, sag, rings=rings)
             if seeded is None:
@@ -570,28 +603,6 @@ def _loose_singles(mesh: Mesh, labels: np.ndarray, fits: dict) -> np.ndarray:
     return loose & (count == 1)
 
 
-def _held_slack(at: _Atoms, curved: list, eps: float, tol: float) -> np.ndarray | None:
-    """Round-off per vertex for the second pass, or None when it has nothing to look at: ``tol`` at the vertices a
-    found face (a curved region, or a plane atom of more than two triangles: proven a plane) holds to round-off and
-    that a small atom no face took shares, ``eps`` elsewhere. A CAD kernel's tolerant edge puts its vertices on one
-    of its two faces and off the other by the edge's tolerance (bench/exact.md, s35-strip); the run's tolerance
-    bounds what a face may miss."""
-    taken = np.zeros(len(at.tris), bool)
-    for r, _ in curved:
-        taken[r] = True
-    big = np.array([len(t) > 2 for t in at.tris])
-    n = len(at.mesh.vertices)
-    on_found, on_free = np.zeros(n, bool), np.zeros(n, bool)
-    for a in np.flatnonzero(taken | big).tolist():
-        on_found[at.verts[a]] = True
-    for a in np.flatnonzero(~taken & ~big).tolist():
-        on_free[at.verts[a]] = True
-    held = on_found & on_free
-    if not held.any() or tol <= eps:
-        return None
-    return np.where(held, tol, eps)
-
-
 def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list) -> tuple[_Atoms, list]:
     """``(atoms, curved regions)``: the curved faces grown after ``found``, then reclaimed, split out of mixed plane
     atoms, found in runs of strips and merged (see :func:`exact_faces`)."""
@@ -645,7 +656,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     at, curved = _curved_stage(at, eps, sag, [])
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
-    slack = _held_slack(at, curved, eps, max(tolerance, eps))
+    slack = held_slack(at, curved, eps, max(tolerance, eps))
     if slack is not None:
         at, curved = _curved_stage(at, slack, sag, curved)
         eps_of = slack
