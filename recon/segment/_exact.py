@@ -255,23 +255,26 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
     kinds = [k for k, _ in CURVED]
     hopeless: dict = {}
     for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
-        pick, e = sets[len(strict) > params]
-        if len(pick) <= params:
-            continue
-        # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
-        if e not in hopeless:
-            hopeless[e] = impossible_types(V[ids[pick]], e)
-        if kind in hopeless[e]:
-            continue
-        try:
-            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e)
-        except (FitError, np.linalg.LinAlgError, ValueError):
-            continue
-        if _fits_exactly(fit, V, F, ids, tris, eps, sag) and (
-                e == e0 or int((np.abs(fit.distance(V[ids])) <= e0).sum()) > params):
-            out.append(fit)
-            if first:
+        # the strict vertices when enough; then all (the strict ones too few to pin the surface: a narrow fillet)
+        tries = ([sets[True]] if len(strict) > params else []) + ([sets[False]] if len(strict) < len(ids) else [])
+        for pick, e in tries:
+            if len(pick) <= params:
+                continue
+            # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit for them
+            if e not in hopeless:
+                hopeless[e] = impossible_types(V[ids[pick]], e)
+            if kind in hopeless[e]:
+                continue
+            try:
+                fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e)
+            except (FitError, np.linalg.LinAlgError, ValueError):
+                continue
+            if _fits_exactly(fit, V, F, ids, tris, eps, sag) and (
+                    e == e0 or int((np.abs(fit.distance(V[ids])) <= e0).sum()) > params):
+                out.append(fit)
                 break
+        if out and first:
+            break
     return out
 
 
@@ -657,11 +660,9 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
     slack = held_slack(at, curved, eps, max(tolerance, eps))
+    eps_of: Tol = eps if slack is None else slack
     if slack is not None:
         at, curved = _curved_stage(at, slack, sag, curved)
-        eps_of = slack
-    else:
-        eps_of = eps
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
