@@ -248,33 +248,32 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
     nrm = own_normals(V, F[tris], ids_local, len(ids))
     e0 = _floor(eps)
     strict = np.arange(len(ids)) if np.ndim(eps) == 0 else np.flatnonzero(eps[ids] <= e0)
-    sets = {}
-    for key, use, e in ((True, strict, e0), (False, np.arange(len(ids)), float(np.max(eps[ids])) if np.ndim(eps) else e0)):
-        sets[key] = (use[np.linspace(0, len(use) - 1, FIT_POINTS).astype(int)] if len(use) > FIT_POINTS else use, e)
-    out = []
+    loose_all = float(np.max(eps[ids])) if np.ndim(eps) else e0
+    out: list[SurfaceFit] = []
     kinds = [k for k, _ in CURVED]
     hopeless: dict = {}
     for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
-        # the strict vertices when enough; then all (the strict ones too few to pin the surface: a narrow fillet)
-        tries = ([sets[True]] if len(strict) > params else []) + ([sets[False]] if len(strict) < len(ids) else [])
-        for pick, e in tries:
-            if len(pick) <= params:
-                continue
-            # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit for them
-            if e not in hopeless:
-                hopeless[e] = impossible_types(V[ids[pick]], e)
-            if kind in hopeless[e]:
-                continue
-            try:
-                fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e)
-            except (FitError, np.linalg.LinAlgError, ValueError):
-                continue
-            if _fits_exactly(fit, V, F, ids, tris, eps, sag) and (
-                    e == e0 or int((np.abs(fit.distance(V[ids])) <= e0).sum()) > params):
-                out.append(fit)
+        # the strict vertices when enough, else all (a strip whose every vertex is on its rims)
+        use, e = (strict, e0) if len(strict) > params else (np.arange(len(ids)), loose_all)
+        if len(use) <= params:
+            continue
+        pick = use[np.linspace(0, len(use) - 1, FIT_POINTS).astype(int)] if len(use) > FIT_POINTS else use
+        # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
+        key = (len(use), e)
+        if key not in hopeless:
+            hopeless[key] = impossible_types(V[ids[pick]], e)
+        if kind in hopeless[key]:
+            continue
+        try:
+            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e)
+        except (FitError, np.linalg.LinAlgError, ValueError):
+            continue
+        # a surface fitted to all is proven by more vertices than its parameters that it holds to round-off
+        if _fits_exactly(fit, V, F, ids, tris, eps, sag) and (
+                e == e0 or int((np.abs(fit.distance(V[ids])) <= e0).sum()) > params):
+            out.append(fit)
+            if first:
                 break
-        if out and first:
-            break
     return out
 
 
@@ -660,13 +659,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
     slack = held_slack(at, curved, eps, max(tolerance, eps))
-    eps_of: Tol = eps if slack is None else slack
     if slack is not None:
         at, curved = _curved_stage(at, slack, sag, curved)
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
-    best = {id(r): _best_type(at, r, f, eps_of, sag) for r, f in curved}
+    # judged at round-off alone: a loose rim lets a sphere hold a cylinder's arc within the tolerance; a face found
+    # only with loose rims keeps its own surface
+    best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
     for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes):
         p = len(fits)
         fits[p] = fit
