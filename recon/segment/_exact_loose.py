@@ -35,20 +35,19 @@ CHAIN_GROWTH = 2
 def held_slack(at: Any, curved: list, eps: float, tol: float) -> np.ndarray | None:
     """Round-off per vertex for the second pass, or None when it has nothing to look at: ``tol`` at the vertices a
     found face (a curved region ``(atoms, fit)`` of ``curved``, or a plane atom of more than two triangles: proven a
-    plane) holds to round-off and that another face or atom shares (its rim), ``eps`` elsewhere."""
-    face = np.arange(len(at.tris)) + len(curved)  # each atom its own face, but for the curved regions'
-    for i, (r, _) in enumerate(curved):
-        face[r] = i
-    found = np.array([len(t) > 2 for t in at.tris]) | (face < len(curved))
+    plane) holds to round-off and that an atom no face took shares, ``eps`` elsewhere. (Not where two found faces
+    meet: a vertex loose there would let either face take the other's small atoms.)"""
+    taken = np.zeros(len(at.tris), bool)
+    for r, _ in curved:
+        taken[r] = True
+    big = np.array([len(t) > 2 for t in at.tris])
     n = len(at.mesh.vertices)
-    first, on_found = np.full(n, -1, dtype=np.int64), np.zeros(n, bool)
-    shared = np.zeros(n, bool)
-    for a in range(len(at.tris)):
-        v = at.verts[a]
-        shared[v[(first[v] >= 0) & (first[v] != face[a])]] = True
-        first[v[first[v] < 0]] = face[a]
-        on_found[v] |= bool(found[a])
-    held = on_found & shared
+    on_found, on_free = np.zeros(n, bool), np.zeros(n, bool)
+    for a in np.flatnonzero(taken | big).tolist():
+        on_found[at.verts[a]] = True
+    for a in np.flatnonzero(~taken & ~big).tolist():
+        on_free[at.verts[a]] = True
+    held = on_found & on_free
     if not held.any() or tol <= eps:
         return None
     return np.where(held, tol, eps)
