@@ -1,8 +1,9 @@
 """The exact path where a STEP edge is tolerant (recon/segment/_exact_loose.py): the vertices on the edge lie on one
 of its two faces to round-off and off the other by up to the edge's tolerance (gmsh exports of real parts: up to
-18 round-offs on the clamp, bench/exact.md s35-strip). Built here from an OCC export of a filleted cylinder whose
-fillet rims, on the two cap planes, are pushed outward within their plane by k round-offs: exact on the plane, off
-the torus by k round-offs."""
+18 round-offs on the clamp, bench/exact.md s35-strip). Built here from an OCC export of a cylinder (quads from cap to
+cap: every vertex on a cap's rim) whose top rim has every other vertex pushed outward within its cap plane by k
+round-offs: exact on the plane, off the cylinder by k round-offs (not onto another cylinder or cone: a uniform push
+would be one)."""
 
 from __future__ import annotations
 
@@ -20,24 +21,22 @@ from recon.segment._exact_loose import chain, long_edge_neighbours
 TOL_SHARE = 1e-4
 
 
-def _filleted_cylinder() -> Mesh:
+def _cylinder() -> Mesh:
     from bench.corpus.regimes import make_fixtures
 
-    solid = bd.fillet(bd.Cylinder(27, 20).edges(), 2)
+    solid = bd.Cylinder(27, 20)
     bb = solid.bounding_box()
     v, t = make_fixtures().occ_mesh(solid, deflection=1e-3 * (bb.max - bb.min).length, angular=0.5)[:2]
     return clean_mesh(np.asarray(v, float), np.asarray(t))
 
 
-def _rims_pushed(mesh: Mesh, k: float) -> Mesh:
-    """The mesh with the vertices where a cap plane meets a fillet moved outward in their plane by ``k`` round-offs."""
+def _rim_pushed(mesh: Mesh, k: float) -> Mesh:
+    """The mesh with every other vertex of its top rim moved outward in the cap plane by ``k`` round-offs."""
     V = mesh.vertices.copy()
-    z0, z1 = V[:, 2].min(), V[:, 2].max()
     r = np.hypot(V[:, 0], V[:, 1])
-    # on a cap plane and on its rim circle (radius 27 - 2: where the fillet starts), not the cap's inside
-    rim = ((np.abs(V[:, 2] - z0) < 1e-9) | (np.abs(V[:, 2] - z1) < 1e-9)) & (r > 25 - 1e-6)
-    eps = roundoff(V)
-    V[rim, :2] *= (1 + k * eps / r[rim])[:, None]
+    rim = np.flatnonzero((np.abs(V[:, 2] - V[:, 2].max()) < 1e-9) & (r > 27 - 1e-6))
+    rim = rim[np.argsort(np.arctan2(V[rim, 1], V[rim, 0]))][::2]
+    V[rim, :2] *= (1 + k * roundoff(V) / r[rim])[:, None]
     return clean_mesh(V, mesh.faces)
 
 
@@ -46,22 +45,23 @@ def _types(mesh: Mesh):
     return None if found is None else dict(Counter(f.type for f in found.fits.values()))
 
 
+@pytest.mark.xfail(strict=True, reason="open (bench/exact.md s36-loose): every vertex is on a rim, the second pass "
+                   "fits each piece through the loose rim and the pieces (6 cylinders, a cone) do not join: 9 faces")
 @pytest.mark.parametrize("k", [8.0, 18.0])
-def test_fillet_rims_off_by_a_tolerant_edge_are_still_the_fillets(k):
-    """k round-offs off the tori, exact on the planes (18: the clamp's largest; both within the run's tolerance,
-    50 round-offs here): the true 5 faces, as with exact rims. Before the second pass the tori's rim strips failed
-    every seed."""
-    mesh = _filleted_cylinder()
-    assert _types(mesh) == {"cylinder": 1, "torus": 2, "plane": 2}
-    assert _types(_rims_pushed(mesh, k)) == {"cylinder": 1, "torus": 2, "plane": 2}
+def test_a_rim_off_by_a_tolerant_edge_is_still_the_cylinder(k):
+    """k round-offs off the cylinder, exact on the cap (18: the clamp's largest; both within the run's tolerance, 50
+    round-offs here): the true 3 faces, as with an exact rim. Without the second pass every quad missed round-off at
+    a pushed vertex and stayed a plane."""
+    mesh = _cylinder()
+    assert _types(mesh) == {"cylinder": 1, "plane": 2}
+    assert _types(_rim_pushed(mesh, k)) == {"cylinder": 1, "plane": 2}
 
 
-def test_rims_off_by_more_than_the_tolerance_are_not_taken():
-    """Pushed by twice the run's tolerance, the rims are on no torus within it: the second pass leaves them."""
-    mesh = _filleted_cylinder()
+def test_a_rim_off_by_more_than_the_tolerance_is_not_taken():
+    """Pushed by twice the run's tolerance, the rim is on no cylinder within it: no cylinder is found."""
+    mesh = _cylinder()
     k = 2 * TOL_SHARE * float(mesh.diagonal) / roundoff(mesh.vertices)
-    types = _types(_rims_pushed(mesh, k))
-    assert types != {"cylinder": 1, "torus": 2, "plane": 2}
+    assert "cylinder" not in (_types(_rim_pushed(mesh, k)) or {})
 
 
 def test_a_chain_walks_a_zig_zag_strip_along_its_long_edges():
