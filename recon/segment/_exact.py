@@ -379,7 +379,8 @@ def _chained(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, nbr: li
     return (region, fit) if len(region) >= CHAIN_GROWTH * len(c) else None
 
 
-def grow_curved(at: _Atoms, eps: Tol, sag: float, found: list | None = None) -> list[tuple[list, SurfaceFit]]:
+def grow_curved(at: _Atoms, eps: Tol, sag: float, found: list | None = None,
+                tally: list[int] | None = None) -> list[tuple[list, SurfaceFit]]:
     """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
     to round-off, after the regions ``found`` already (kept as they are, their atoms not free). Seeds are the atoms of
     one or two triangles (a strip's quad, a fan's triangle), first with their rings, then in pairs of quads; each
@@ -393,32 +394,29 @@ def grow_curved(at: _Atoms, eps: Tol, sag: float, found: list | None = None) -> 
     # inside a curved face first (every neighbour a small atom across no crease), where the rings tell the type
     inner = [sum(len(at.tris[n]) > 2 or not at.smooth(a, n) for n in at.nbrs[a]) for a in range(k)]
     order = sorted((a for a in range(k) if len(at.tris[a]) <= 2), key=lambda a: (inner[a], a))
-    if np.ndim(eps):  # a second pass: only seeds whose rings reach a loose vertex see anything the first did not
-        loose = {a for a in range(k) if free[a] and bool((eps[at.verts[a]] > _floor(eps)).any())}
-        near = loose | {n for a in loose for n in at.nbrs[a]}
-        order = [a for a in order if a in near]
+    if np.ndim(eps):  # a second pass: only an atom with a loose vertex sees anything the first did not
+        order = [a for a in order if free[a] and bool((eps[at.verts[a]] > _floor(eps)).any())]
     nbr = long_edge_neighbours(at.mesh)
-    for rings in (True, False):
-        failed = 0
-        for s in order:
+    tally = [0, 0] if tally is None else tally
+    for stage, rings in enumerate((True, False)):
+        failed = tally[stage]
+        for s in order if failed <= SEED_BUDGET + k * SEED_BUDGET_SHARE else ():
             if not free[s]:
                 continue
             # a zig-zag strip first: a chain along its long edges, kept when its face grows to CHAIN_GROWTH times it
             grown = _chained(at, s, free, eps, sag, nbr) if rings and len(at.tris[s]) == 1 else None
-            if grown is not None:
-                free[grown[0]] = False
-                regions.append(grown)
-                continue
-            seeded = _seed(at, s, free, eps, sag, rings=rings)
-            if seeded is None:
+            if grown is None:
+                seeded = _seed(at, s, free, eps, sag, rings=rings)
+                grown = None if seeded is None else _grow(at, seeded[0], seeded[1], free, eps, sag)
+            if grown is None:
                 failed += 1
                 if failed > SEED_BUDGET + k * SEED_BUDGET_SHARE:
                     log.info("exact: %d seeds failed of %d atoms: the rest is free-form", failed, k)
                     break
                 continue
-            region, fit = _grow(at, seeded[0], seeded[1], free, eps, sag)
-            free[region] = False
-            regions.append((region, fit))
+            free[grown[0]] = False
+            regions.append(grown)
+        tally[stage] = failed
     log.info("exact: %d curved faces of %d atoms", len(regions), k)
     return regions
 
@@ -605,12 +603,12 @@ def _loose_singles(mesh: Mesh, labels: np.ndarray, fits: dict) -> np.ndarray:
     return loose & (count == 1)
 
 
-def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list) -> tuple[_Atoms, list]:
-    """``(atoms, curved regions)``: the curved faces grown after ``found``, then reclaimed, split out of mixed plane
-    atoms, found in runs of strips and merged (see :func:`exact_faces`)."""
+def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list, tally: list[int]) -> tuple[_Atoms, list]:
+    """``(atoms, curved regions)``: the curved faces grown after ``found`` (seeds failing on from ``tally``), then
+    reclaimed, split out of mixed plane atoms, found in runs of strips and merged (see :func:`exact_faces`)."""
     mesh = at.mesh
     V, F = mesh.vertices, mesh.faces
-    curved = reclaim(at, grow_curved(at, eps, sag, found), eps, sag)
+    curved = reclaim(at, grow_curved(at, eps, sag, found, tally), eps, sag)
     # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them
     at, split = split_atoms(at, curved, _floor(eps), COS_CREASE,
                             lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag),
@@ -655,12 +653,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     notes: list = []
     labels = np.full(len(F), -1, dtype=np.int64)
     fits: dict = {}
-    at, curved = _curved_stage(at, eps, sag, [])
+    # one budget of failed seeds for both passes: where the first found the rest free-form, the second seeds nothing
+    tally = [0, 0]
+    at, curved = _curved_stage(at, eps, sag, [], tally)
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
     slack = held_slack(at, curved, eps, max(tolerance, eps))
     if slack is not None:
-        at, curved = _curved_stage(at, slack, sag, curved)
+        at, curved = _curved_stage(at, slack, sag, curved, tally)
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
