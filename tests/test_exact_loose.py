@@ -47,8 +47,8 @@ def _types(mesh: Mesh):
 
 @pytest.mark.xfail(strict=True, reason="open (bench/exact.md s36-loose, s37-loose): the first pass finds 14 cones of 5 "
                    "quads holding their pushed vertices to round-off; a vertex between two found faces is not loose, so "
-                   "no union of the pieces (6 cylinders, a cone) holds them: 9 faces. Loose there too gives the 3 faces "
-                   "but mixed faces on export seeds 48 and 90")
+                   "no union of the pieces holds them: 9 faces at k=8 (6 cylinders, a cone), main's 2 planes and a "
+                   "B-spline at k=18. Loose there too gives the 3 faces but mixed faces on export seeds 48 and 90")
 @pytest.mark.parametrize("k", [8.0, 18.0])
 def test_a_rim_off_by_a_tolerant_edge_is_still_the_cylinder(k):
     """k round-offs off the cylinder, exact on the cap (18: the clamp's largest; both within the run's tolerance, 50
