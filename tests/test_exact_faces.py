@@ -81,13 +81,17 @@ def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     assert not [n for n in found.notes if "not proven" in n]
 
 
-def test_a_variable_fillet_cut_into_a_cone_and_planes_is_not_proven(tmp_path):
-    """Export seed 65: a variable-radius fillet (one B-spline face of 8 triangles) lies on a cone to round-off but for
-    its end quads, which stay planes meeting the cone at a kink of 1.2-1.3 degrees (their round-off tilt: 0.3-0.8):
-    26 faces for 24, and the notes say the count is not proven there."""
+def test_a_variable_fillet_cut_into_a_cone_and_planes_takes_its_end_quads_through_loose_rims(tmp_path):
+    """Export seed 65: a variable-radius fillet (one B-spline face of 8 triangles, 9 vertices) lies on a cone: 7 of its
+    vertices to round-off, the end quads' other 2, which the planes beside them hold to round-off, within 9.1
+    round-offs (the run's tolerance is 50). The first pass left the end quads planes at a kink (26 faces, "not
+    proven"); the second, where a vertex a found face holds may miss its neighbour by the tolerance, joins them to the
+    cone: the true 24 faces, each one true face. (The vertices prove the partition; the fillet's surface is still a
+    cone for a B-spline.)"""
     found, true, meta = _corpus_faces(65, tmp_path)
-    assert int(found.labels.max()) + 1 == meta["faces"] + 2
-    assert [n for n in found.notes if n.startswith("face count not proven: 2 edge(s)")]
+    assert int(found.labels.max()) + 1 == meta["faces"]
+    for p in range(int(found.labels.max()) + 1):  # every face is one true face
+        assert len(np.unique(true[found.labels == p])) == 1
 
 
 def _corpus_faces(seed: int, tmp_path):

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from functools import partial
+from typing import Union
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,6 +27,7 @@ from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
+from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_merge import merge_curved
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
@@ -213,43 +215,69 @@ def _chord_points(V: np.ndarray, F: np.ndarray, tris: np.ndarray) -> np.ndarray:
     return np.concatenate([P.mean(axis=1), (P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
 
 
-def _fits_exactly(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: float,
+#: Round-off per vertex: one distance for every vertex, or an array over the mesh's vertices (a vertex that a found
+#: face's surface holds to round-off may miss a neighbouring face by the STEP edge's tolerance: ``held_slack``).
+Tol = Union[float, np.ndarray]
+
+
+def _floor(eps: Tol) -> float:
+    """The round-off of the strict vertices (the smallest of ``eps``)."""
+    return float(eps) if np.ndim(eps) == 0 else float(np.min(eps))
+
+
+def _fits_exactly(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: Tol,
                   sag: float) -> bool:
-    """Whether ``fit`` holds the vertices ``ids`` within ``eps`` and passes within ``sag`` of the triangles."""
+    """Whether ``fit`` holds the vertices ``ids`` within ``eps`` (each its own) and passes within ``sag`` of the
+    triangles."""
     if not fit.ok or fit.type == "bspline":
         return False
-    if float(np.max(np.abs(fit.distance(V[ids])))) > eps:
+    limit = eps if np.ndim(eps) == 0 else eps[ids]
+    if not bool(np.all(np.abs(fit.distance(V[ids])) <= limit)):
         return False
     return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris))))) <= sag
 
 
-def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: float, sag: float, *,
+def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float, *,
                 first: bool = True, above: str | None = None) -> list[SurfaceFit]:
     """The curved surfaces that hold the vertices ``ids`` to round-off and the triangles within the sag, simplest
     first (only the first when ``first``; only types more complex than ``above``); a type needs one vertex more than
-    its parameters."""
+    its parameters that it holds to round-off. With round-off per vertex, a type is fitted to the strict vertices
+    when they are enough (the loose ones, on a neighbour's surface, are only checked), else to all of them (a strip
+    whose every vertex is on its rims) within the loosest round-off."""
     ids_local = np.searchsorted(ids, F[tris])
     nrm = own_normals(V, F[tris], ids_local, len(ids))
-    out = []
+    e0 = _floor(eps)
+    strict = np.arange(len(ids)) if np.ndim(eps) == 0 else np.flatnonzero(eps[ids] <= e0)
+    loose_all = float(np.max(eps[ids])) if np.ndim(eps) else e0
+    out: list[SurfaceFit] = []
     kinds = [k for k, _ in CURVED]
-    pick = np.linspace(0, len(ids) - 1, FIT_POINTS).astype(int) if len(ids) > FIT_POINTS else slice(None)
-    # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
-    hopeless = impossible_types(V[ids[pick]], eps)
+    hopeless: dict = {}
     for kind, params in CURVED[kinds.index(above) + 1 if above in kinds else 0:]:
-        if len(ids) <= params or kind in hopeless:
+        # the strict vertices when enough, else all (a strip whose every vertex is on its rims)
+        use, e = (strict, e0) if len(strict) > params else (np.arange(len(ids)), loose_all)
+        if len(use) <= params:
+            continue
+        pick = use[np.linspace(0, len(use) - 1, FIT_POINTS).astype(int)] if len(use) > FIT_POINTS else use
+        # the types whose every surface misses some vertex, proven by one SVD each: no nonlinear fit is tried for them
+        key = (len(use), e)
+        if key not in hopeless:
+            hopeless[key] = impossible_types(V[ids[pick]], e)
+        if kind in hopeless[key]:
             continue
         try:
-            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=eps)
+            fit = FITTERS[kind](V[ids[pick]], nrm[pick], tolerance=e)
         except (FitError, np.linalg.LinAlgError, ValueError):
             continue
-        if _fits_exactly(fit, V, F, ids, tris, eps, sag):
+        # a surface fitted to all is proven by more vertices than its parameters that it holds to round-off
+        if _fits_exactly(fit, V, F, ids, tris, eps, sag) and (
+                e == e0 or int((np.abs(fit.distance(V[ids])) <= e0).sum()) > params):
             out.append(fit)
             if first:
                 break
     return out
 
 
-def _seed(at: _Atoms, s: int, free: np.ndarray, eps: float, sag: float, *, rings: bool):
+def _seed(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, *, rings: bool):
     """A curved surface through atom ``s`` and some of its free small neighbours: ``(atoms, fit)`` or None.
 
     Tried from the largest set down: the atoms within two steps (inside a curved face they span three rings of
@@ -294,7 +322,7 @@ UPGRADE_TRIES = 32
 FIT_POINTS = 256
 
 
-def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: float, sag: float):
+def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: Tol, sag: float):
     """Grow ``region`` over free neighbouring atoms while a curved surface holds them all (refitted, possibly of a
     more complex type, when a neighbour is off the current one)."""
     V, F = at.mesh.vertices, at.mesh.faces
@@ -337,37 +365,63 @@ SEED_BUDGET = 64
 SEED_BUDGET_SHARE = 0.1
 
 
-def grow_curved(at: _Atoms, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
+def _chained(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, nbr: list) -> tuple[list, SurfaceFit] | None:
+    """The face grown from a chain of one-triangle atoms through ``s`` (:func:`chain`) that a curved surface holds,
+    when it holds :data:`CHAIN_GROWTH` times the chain's atoms; else None."""
+    c = chain(at, s, free, nbr)
+    if not c:
+        return None
+    ids, tris = at.points(c)
+    fits = _candidates(at.mesh.vertices, at.mesh.faces, ids, tris, eps, sag)
+    if not fits:
+        return None
+    region, fit = _grow(at, list(c), fits[0], free, eps, sag)
+    return (region, fit) if len(region) >= CHAIN_GROWTH * len(c) else None
+
+
+def grow_curved(at: _Atoms, eps: Tol, sag: float, found: list | None = None,
+                tally: list[int] | None = None) -> list[tuple[list, SurfaceFit]]:
     """The curved faces: ``(atoms, fit)`` for every region of plane atoms a cylinder, cone, sphere or torus holds
-    to round-off. Seeds are the atoms of one or two triangles (a strip's quad, a fan's triangle), first with their
-    rings, then in pairs of quads; each stage stops when more seeds fail than :data:`SEED_BUDGET` and
-    :data:`SEED_BUDGET_SHARE` of the atoms allow (what is left is free-form)."""
+    to round-off, after the regions ``found`` already (kept as they are, their atoms not free). Seeds are the atoms of
+    one or two triangles (a strip's quad, a fan's triangle), first with their rings, then in pairs of quads; each
+    stage stops when more seeds fail than :data:`SEED_BUDGET` and :data:`SEED_BUDGET_SHARE` of the atoms allow (what
+    is left is free-form)."""
     k = len(at.tris)
     free = np.ones(k, bool)
-    regions = []
+    regions = list(found or [])
+    for r, _ in regions:
+        free[r] = False
     # inside a curved face first (every neighbour a small atom across no crease), where the rings tell the type
     inner = [sum(len(at.tris[n]) > 2 or not at.smooth(a, n) for n in at.nbrs[a]) for a in range(k)]
     order = sorted((a for a in range(k) if len(at.tris[a]) <= 2), key=lambda a: (inner[a], a))
-    for rings in (True, False):
-        failed = 0
-        for s in order:
+    if np.ndim(eps):  # a second pass: only an atom with a loose vertex sees anything the first did not
+        order = [a for a in order if free[a] and bool((eps[at.verts[a]] > _floor(eps)).any())]
+    nbr = long_edge_neighbours(at.mesh)
+    tally = [0, 0] if tally is None else tally
+    for stage, rings in enumerate((True, False)):
+        failed = tally[stage]
+        for s in order if failed <= SEED_BUDGET + k * SEED_BUDGET_SHARE else ():
             if not free[s]:
                 continue
-            seeded = _seed(at, s, free, eps, sag, rings=rings)
-            if seeded is None:
+            # a zig-zag strip first: a chain along its long edges, kept when its face grows to CHAIN_GROWTH times it
+            grown = _chained(at, s, free, eps, sag, nbr) if rings and len(at.tris[s]) == 1 else None
+            if grown is None:
+                seeded = _seed(at, s, free, eps, sag, rings=rings)
+                grown = None if seeded is None else _grow(at, seeded[0], seeded[1], free, eps, sag)
+            if grown is None:
                 failed += 1
                 if failed > SEED_BUDGET + k * SEED_BUDGET_SHARE:
                     log.info("exact: %d seeds failed of %d atoms: the rest is free-form", failed, k)
                     break
                 continue
-            region, fit = _grow(at, seeded[0], seeded[1], free, eps, sag)
-            free[region] = False
-            regions.append((region, fit))
+            free[grown[0]] = False
+            regions.append(grown)
+        tally[stage] = failed
     log.info("exact: %d curved faces of %d atoms", len(regions), k)
     return regions
 
 
-def reclaim(at: _Atoms, regions: list, eps: float, sag: float) -> list[tuple[list, SurfaceFit]]:
+def reclaim(at: _Atoms, regions: list, eps: Tol, sag: float) -> list[tuple[list, SurfaceFit]]:
     """The curved regions after each, largest first, took over the neighbouring atoms its surface holds to round-off
     (and within the sag) from smaller curved regions and from the small plane atoms no region took, across no crease.
 
@@ -427,7 +481,7 @@ def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, 
     return int((np.abs(fit.distance(mids)) <= eps).sum())
 
 
-def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: float, sag: float) -> tuple[SurfaceFit, str]:
+def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) -> tuple[SurfaceFit, str]:
     """The surface of a grown region among every curved type that holds it: the one with the most edges on it
     (rulings), then the simplest; and the report's note when several fit ("" when one does)."""
     V, F = at.mesh.vertices, at.mesh.faces
@@ -435,7 +489,7 @@ def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: float, sag: float
     fits = _candidates(V, F, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
         return fits[0], ""
-    rank = [(-_on_chords(f, V, F, tris, eps), i) for i, f in enumerate(fits)]
+    rank = [(-_on_chords(f, V, F, tris, _floor(eps)), i) for i, f in enumerate(fits)]
     best = fits[min(rank)[1]]
     return best, (f"{best.type} chosen among {', '.join(f.type for f in fits)} that all hold its {len(ids)} vertices "
                   f"to round-off ({-min(rank)[0]} edges on it)")
@@ -549,6 +603,31 @@ def _loose_singles(mesh: Mesh, labels: np.ndarray, fits: dict) -> np.ndarray:
     return loose & (count == 1)
 
 
+def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list, tally: list[int]) -> tuple[_Atoms, list]:
+    """``(atoms, curved regions)``: the curved faces grown after ``found`` (seeds failing on from ``tally``), then
+    reclaimed, split out of mixed plane atoms, found in runs of strips and merged (see :func:`exact_faces`)."""
+    mesh = at.mesh
+    V, F = mesh.vertices, mesh.faces
+    curved = reclaim(at, grow_curved(at, eps, sag, found, tally), eps, sag)
+    # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them
+    at, split = split_atoms(at, curved, _floor(eps), COS_CREASE,
+                            lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag),
+                            lambda labels: _Atoms.of(mesh, labels))
+    if split is not curved:
+        curved = reclaim(at, split, eps, sag)
+    # runs of plane strips no seed explained (a cylinder one quad wide between fillets: seed 15), then merged as bands
+    curved = strip_faces(at, curved, _floor(eps), lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None))
+    # bands of one torus (two latitude circles lie on a cone, a cylinder or a sphere) joined when one surface holds
+    # them; the joined face then reclaims the 2-triangle planes between its bands, which may join more (seed 35)
+    for _ in range(MERGE_ROUNDS):
+        merged = merge_curved(at, curved, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None),
+                              lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag))
+        if len(merged) == len(curved):
+            break
+        curved = reclaim(at, merged, eps, sag)
+    return at, curved
+
+
 def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -> ExactFaces | None:
     """The faces of a mesh with exact vertices and their surfaces (see the module's text).
 
@@ -574,26 +653,19 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     notes: list = []
     labels = np.full(len(F), -1, dtype=np.int64)
     fits: dict = {}
-    curved = reclaim(at, grow_curved(at, eps, sag), eps, sag)
-    # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them
-    at, split = split_atoms(at, curved, eps, COS_CREASE,
-                            lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag),
-                            lambda labels: _Atoms.of(mesh, labels))
-    if split is not curved:
-        curved = reclaim(at, split, eps, sag)
-    # runs of plane strips no seed explained (a cylinder one quad wide between fillets: seed 15), then merged as bands
-    curved = strip_faces(at, curved, eps, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None))
-    # bands of one torus (two latitude circles lie on a cone, a cylinder or a sphere) joined when one surface holds
-    # them; the joined face then reclaims the 2-triangle planes between its bands, which may join more (seed 35)
-    for _ in range(MERGE_ROUNDS):
-        merged = merge_curved(at, curved, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None),
-                              lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag))
-        if len(merged) == len(curved):
-            break
-        curved = reclaim(at, merged, eps, sag)
+    # one budget of failed seeds for both passes: where the first found the rest free-form, the second seeds nothing
+    tally = [0, 0]
+    at, curved = _curved_stage(at, eps, sag, [], tally)
+    # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
+    # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
+    slack = held_slack(at, curved, eps, max(tolerance, eps))
+    if slack is not None:
+        at, curved = _curved_stage(at, slack, sag, curved, tally)
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
+    # judged at round-off alone: a loose rim lets a sphere hold a cylinder's arc within the tolerance; a face found
+    # only with loose rims keeps its own surface
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
     for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes):
         p = len(fits)
