@@ -523,7 +523,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         See :func:`fit_plane`.
     exact : bool
         The points lie on the surface to round-off (a CAD export's vertices): a refinement that its evaluation budget
-        stopped at a spindle torus is continued (plain least squares, nothing to down-weight) while it still gains,
+        stopped at a spindle torus, or short of the ``tolerance``, is continued (plain least squares, nothing to down-weight) while it still gains,
         up to :data:`_EXACT_NFEV` evaluations, as it was still descending a valley, not at the answer.
 
     Returns
@@ -566,7 +566,10 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
 
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, r_major0, r_minor0])
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)
-    if exact and res.status == 0 and res.x[5] < res.x[6] and len(q) >= len(x0):
+    # exact points: a fit the budget stopped short of them (a spindle torus, or a narrow patch still off by more
+    # than their round-off) was still descending; continued while it gains
+    if exact and res.status == 0 and len(q) >= len(x0) and (
+            res.x[5] < res.x[6] or tolerance is None or float(np.max(np.abs(fun(res.x, q)))) > tolerance):
         res = _continued(fun, jac, res.x, q)
     d = _direction(d0, e1, e2, res.x[0], res.x[1])
     center = c0 + res.x[2:5] + mean
