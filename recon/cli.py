@@ -6,7 +6,8 @@ parser and sets ``func``) so that stages can add commands without touching each 
 Output: the result's summary goes to stdout (``recon convert a.stl b.step > summary.txt`` keeps it); warnings,
 progress and errors go to stderr; ``-q`` prints errors only.
 
-Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), 2 bad input,
+Exit codes: 0 a result written and good, 1 a result written that is not (the subcommand says why), or none written
+because no file could hold it (:class:`~recon.errors.UnwritableError`: "error: no result: …"), 2 bad input,
 an option out of range, an output that cannot be written, or not enough memory (one line on stderr), 3 no result:
 an internal error (a bug: one line, the traceback with ``-v``) or a B-rep ``convert`` could not build or write (a
 :class:`~recon.errors.BrepError`: "error: no result: …"), 128 + the signal when interrupted (130 SIGINT,
@@ -164,7 +165,7 @@ def _check_address_space(command: str) -> None:
 
 def _one_line(err: BaseException, guard, verbose: bool = False, command: str = "recon") -> tuple[int, str]:
     """The exit code and the one line an error is reported with."""
-    from .errors import BrepError, ReconError
+    from .errors import BrepError, ReconError, UnwritableError
 
     if guard.signum is not None:  # an import turns it into ImportError, a worker into anything
         return guard.exit_code(), guard.message()
@@ -175,6 +176,8 @@ def _one_line(err: BaseException, guard, verbose: bool = False, command: str = "
         return EXIT_BROKEN_PIPE, ""  # the reader stopped reading: nothing to tell, and nowhere to tell it
     # convert's own B-rep that could not be built or written (nothing written) is recon's failure, not bad input; in
     # compare a BrepError is about the user's shape
+    if isinstance(err, UnwritableError) and command == "recon convert":  # a result that is not right, not a crash
+        return EXIT_NOT_GOOD, f"error: no result: {err}"
     if isinstance(err, BrepError) and command == "recon convert":
         return EXIT_INTERNAL, f"error: no result: {err}"
     if isinstance(err, ReconError):

@@ -2,7 +2,8 @@
 
 The CLI turns any :class:`ReconError` into one line on stderr and exit code 2 (bad input), but a
 :class:`BrepError` in ``recon convert`` into exit code 3 (no result): a mesh recon could not make a B-rep of is
-recon's failure.
+recon's failure; and an :class:`UnwritableError` into exit code 1: a result that is not right, found before a file
+was written.
 """
 
 __all__ = [
@@ -13,6 +14,7 @@ __all__ = [
     "FitError",
     "BrepError",
     "ExportError",
+    "UnwritableError",
 ]
 
 
@@ -42,3 +44,7 @@ class BrepError(ReconError):
 
 class ExportError(ReconError):
     """A result could not be written."""
+
+
+class UnwritableError(BrepError):
+    """recon's B-rep holds no face a file can carry (faces with no area): nothing was written (exit code 1)."""

@@ -570,11 +570,13 @@ def write_checked(result, path: str | os.PathLike, *, name: str = "recon", units
 
     from .brep import write_shape
     from .brep._export import model_units
-    from .brep._result import count_shapes
-    from .errors import BrepError, ReconError
+    from .brep._result import collapsed_face_count, count_shapes
+    from .errors import BrepError, ReconError, UnwritableError
 
-    if count_shapes(result.brep.occ, TopAbs_FACE) == 0:  # (nothing to write: no file, rather than an empty one)
-        raise BrepError("the B-rep holds no face")
+    n_faces = count_shapes(result.brep.occ, TopAbs_FACE)
+    if n_faces == collapsed_face_count(result.brep.occ):  # (nothing to write: no file, rather than an empty one)
+        raise UnwritableError(f"the B-rep holds no face with area ({n_faces} faces bounded by degenerate edges only)"
+                              if n_faces else "the B-rep holds no face")
     # an STL's chords within half the tolerance of the faces: the volume rule holds for the file as for the B-rep
     path = write_shape(path, result.brep, name=name, deflection=0.5 * float(result.report["tolerance"]),
                        units=units, schema=schema)

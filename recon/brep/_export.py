@@ -25,14 +25,15 @@ from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader,
 from OCP.STEPControl import STEPControl_Controller, STEPControl_StepModelType
 from OCP.TCollection import TCollection_ExtendedString
 from OCP.TDataStd import TDataStd_Name
+from OCP.TopAbs import TopAbs_FACE
 from OCP.TDF import TDF_Label, TDF_LabelSequence
 from OCP.TDocStd import TDocStd_Document
 from OCP.XCAFDoc import XCAFDoc_ColorType, XCAFDoc_DocumentTool
 
 from .._io import atomic_path
-from ..errors import ExportError, InputError
+from ..errors import ExportError, InputError, UnwritableError
 from ._messages import occ_messages
-from ._result import KIND_COLOURS, BrepResult
+from ._result import KIND_COLOURS, BrepResult, collapsed_face_count, count_shapes
 
 __all__ = ["SCHEMAS", "UNITS", "model_units", "read_iges", "read_step_faces", "write_shape"]
 
@@ -138,9 +139,21 @@ def _write_step(tmp: Path, result: BrepResult, name: str, units: str, schema: st
         writer.SetColorMode(True)
         if not writer.Transfer(doc, STEPControl_StepModelType.STEPControl_AsIs):
             raise ExportError(f"cannot write {tmp.name}: STEPCAFControl_Writer.Transfer failed")
+        if not _step_faces(writer.ChangeWriter().Model()):
+            # the transfer skips a face with no edge of length (and the solid of nothing else) and still succeeds
+            raise UnwritableError(f"OpenCascade's STEP writer took none of the {count_shapes(result.occ, TopAbs_FACE)} "
+                                  f"faces ({collapsed_face_count(result.occ)} have no area): nothing written")
         status = writer.Write(str(tmp))
     if status != IFSelect_ReturnStatus.IFSelect_RetDone:
         raise ExportError(f"cannot write STEP: writer returned {status}")
+
+
+def _step_faces(model) -> int:
+    """The faces (``ADVANCED_FACE``, ``FACE_SURFACE``) in a STEP model made by a writer's transfer."""
+    from OCP.StepShape import StepShape_FaceSurface
+
+    kind = StepShape_FaceSurface.get_type_descriptor_s()  # (ADVANCED_FACE is a kind of FACE_SURFACE)
+    return sum(model.Value(i).IsKind(kind) for i in range(1, model.NbEntities() + 1))
 
 
 def _write_iges(tmp: Path, occ, units: str) -> None:

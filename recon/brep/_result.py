@@ -20,7 +20,8 @@ from OCP.TopoDS import TopoDS_Shape
 
 from ..network import NetworkGeometry
 
-__all__ = ["BrepResult", "FaceRecord", "FaceStatus", "KIND_COLOURS", "Validity", "free_edge_count", "shape_validity"]
+__all__ = ["BrepResult", "FaceRecord", "FaceStatus", "KIND_COLOURS", "Validity", "collapsed_face_count", "free_edge_count",
+           "shape_validity"]
 
 
 class FaceStatus(str, enum.Enum):
@@ -141,6 +142,26 @@ def count_shapes(shape, kind) -> int:
     while exp.More():
         n += 1
         exp.Next()
+    return n
+
+
+def collapsed_face_count(shape) -> int:
+    """Faces of ``shape`` bounded by degenerate edges only: a face sewing shrank to a point or a line, with no area.
+
+    OpenCascade's STEP writer skips such a face (an edge loop of degenerate edges is empty), and with it a shell and
+    a solid made of nothing else: the file would hold no face.
+    """
+    from OCP.BRep import BRep_Tool
+    from OCP.TopoDS import TopoDS
+
+    n = 0
+    faces = TopExp_Explorer(shape, TopAbs_FACE)
+    while faces.More():
+        edges = TopExp_Explorer(faces.Current(), TopAbs_EDGE)
+        while edges.More() and BRep_Tool.Degenerated_s(TopoDS.Edge_s(edges.Current())):
+            edges.Next()
+        n += not edges.More()
+        faces.Next()
     return n
 
 

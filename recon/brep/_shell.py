@@ -16,7 +16,7 @@ from OCP.TopoDS import TopoDS, TopoDS_Compound, TopoDS_Shell
 
 from ._edges import fix_edges
 from ._faces import PRECISION_SHARE, face_problems
-from ._result import count_shapes, free_edge_count, shape_validity
+from ._result import collapsed_face_count, count_shapes, free_edge_count, shape_validity
 
 
 #: Sewing tolerances tried, as multiples of the tolerance, when the shell has free edges (the last resort): copies
@@ -58,14 +58,21 @@ def assemble(faces, tolerance, open_mesh, warnings):
                 shell = _without_small_edges(shell, tolerance, warnings)
         else:
             warnings.append("shell had free edges; sewing returned no face")
-    fix = ShapeFix_Shell(shell)
     # A shell as built needs orientation only: every face was mended (and checked) on its own already, and
     # ShapeFix_Shell's own pass of ShapeFix_Face works at OCC's 1e-7 and re-merges what the faces share (it can
     # split a closed manifold shell into several with free edges). Sewing re-cuts edges: that pass mends what it
     # leaves.
-    fix.FixFaceMode = -1 if sewn_shell else 0  # -1: its default
-    fix.Perform()
-    fixed = fix.Shape()
+    face_mode = -1 if sewn_shell else 0  # -1: its default
+    fixed = _shell_fixed(shell, face_mode)
+    if face_mode:
+        # ShapeFix_Face makes degenerate an edge whose vertex lies within its (sewing-widened) tolerance of a
+        # narrow side of its surface: a shared edge lost splits the shell in two, a face bounded by it alone has no
+        # area left (no STEP file holds it). The sewn faces only oriented are kept when they stay whole.
+        oriented = _shell_fixed(shell, 0)
+        if _pieces(fixed) > _pieces(oriented):
+            warnings.append("mending the sewn faces split the shell or left a face with no area: the sewn faces "
+                            "only oriented")
+            face_mode, fixed = 0, oriented
     shells = []
     exp = TopExp_Explorer(fixed, TopAbs_SHELL)
     while exp.More():
@@ -92,7 +99,7 @@ def assemble(faces, tolerance, open_mesh, warnings):
             solids.append(sh)
             continue
         sf = ShapeFix_Solid(mk.Solid())
-        sf.FixShellTool().FixFaceMode = -1 if sewn_shell else 0  # (as for the shell above)
+        sf.FixShellTool().FixFaceMode = face_mode  # (as for the shell above)
         sf.Perform()
         fixed_solid = sf.Solid()
         if fixed_solid.IsNull() or fixed_solid.ShapeType() != TopAbs_SOLID:
@@ -117,6 +124,20 @@ def assemble(faces, tolerance, open_mesh, warnings):
         builder.Add(comp, s)
     warnings.append(f"{len(solids)} bodies: the result is a compound")
     return comp
+
+
+def _shell_fixed(shell, face_mode: int):
+    """``ShapeFix_Shell`` on ``shell`` (its faces oriented alike, split by connection), with ``FixFaceMode``
+    ``face_mode``: -1 mends every face too (ShapeFix_Face), 0 orients only."""
+    fix = ShapeFix_Shell(shell)
+    fix.FixFaceMode = face_mode
+    fix.Perform()
+    return fix.Shape()
+
+
+def _pieces(shape) -> int:
+    """Shells and faces with no area in ``shape``: what a face mending must not add."""
+    return count_shapes(shape, TopAbs_SHELL) + collapsed_face_count(shape)
 
 
 def _sewn(faces, tolerance: float):
