@@ -20,7 +20,6 @@ from collections.abc import Callable, Sequence
 import logging
 import os
 import dataclasses
-import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -291,6 +290,7 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
     tri = _pieces(v[f])
     centre = tri.mean(axis=1)
     radius = np.linalg.norm(tri - centre[:, None, :], axis=2).max(axis=1)
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
     reach = float(radius.max())
     tree = cKDTree(centre)
     m = len(tri)
@@ -306,9 +306,12 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
         distances ``dk``, nearest first); the first is measured, the others only where their bound can beat it."""
         d0 = _point_triangle_distance(p[i], tri[j[:, 0]])
         rows, cols = np.nonzero(dk[:, 1:] - radius[j[:, 1:]] <= d0[:, None] + slack)
+        # (a sliver's ball is as wide as it is long: its box, nearer its shape, rules out most of the rest)
+        cols = j[rows, cols + 1]
+        near = _box_gap(p[i[rows]], lo[cols], hi[cols]) <= d0[rows] + slack
+        rows, cols = rows[near], cols[near]
         if len(rows):
-            d = _point_triangle_distance(p[i[rows]], tri[j[rows, cols + 1]])
-            np.minimum.at(d0, rows, d)
+            np.minimum.at(d0, rows, _point_triangle_distance(p[i[rows]], tri[cols]))
         return d0
 
     def tell(done, total, what):
@@ -349,46 +352,77 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
     return best, exact
 
 
-def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, classes: int = 6, tell=None):
+def _box_gap(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Distance from each point ``p[i]`` to the box ``lo[i]``–``hi[i]`` (0 inside; inf to an empty box, lo > hi):
+    never more than to anything the box holds."""
+    gap = np.maximum(np.maximum(lo - p, p - hi), 0.0)
+    return np.sqrt(np.einsum("ij,ij->i", gap, gap))
+
+
+def _box_tree(tri: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """A bounding-box hierarchy of the pieces ``tri`` (m, 3, 3), split at the median of their box centres along the
+    longest side, level by level: ``(order, levels)``, per level of a complete binary tree (root first) the boxes
+    ``(lo, hi)`` of its nodes; node ``k`` of the last level is piece ``order[k]``, or an empty box where ``order[k]``
+    is -1. A node's box is the exact union (min, max) of its children's: its distance to a point is never more than
+    theirs, so a node farther than a bound holds no piece within it."""
+    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    mid = 0.5 * (lo + hi)
+    m = len(tri)
+    depth = max(0, int(m - 1).bit_length())
+    perm = np.arange(m)
+    for level in range(depth):  # node k of this level holds perm[(k·m) >> level : ((k+1)·m) >> level]
+        edges = (np.arange((1 << level) + 1) * m) >> level
+        node = np.repeat(np.arange(1 << level), np.diff(edges))
+        c = mid[perm]
+        first = edges[:-1][np.diff(edges) > 0]
+        ext = np.maximum.reduceat(c, first) - np.minimum.reduceat(c, first)
+        axis = np.zeros(1 << level, dtype=np.int64)
+        axis[np.diff(edges) > 0] = np.argmax(ext, axis=1)
+        perm = perm[np.lexsort((c[np.arange(m), axis[node]], node))]
+    edges = (np.arange((1 << depth) + 1) * m) >> depth
+    order = np.full(1 << depth, -1, dtype=np.int64)
+    order[np.diff(edges) > 0] = perm
+    box_lo, box_hi = np.full((len(order), 3), np.inf), np.full((len(order), 3), -np.inf)
+    box_lo[order >= 0], box_hi[order >= 0] = lo[perm], hi[perm]
+    levels = [(box_lo, box_hi)]
+    while len(box_lo) > 1:
+        box_lo, box_hi = np.minimum(box_lo[0::2], box_lo[1::2]), np.maximum(box_hi[0::2], box_hi[1::2])
+        levels.append((box_lo, box_hi))
+    return order, levels[::-1]
+
+
+def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, tell=None):
     """Lower ``best[idx]`` to the exact distance from ``p[idx]`` to the pieces ``tri`` (centroids ``centre``,
     radii ``radius``), given that ``best`` already bounds it from above and that at most ``count`` pieces per point
     lie within ``best`` + the largest radius (batches of :data:`_PAIR_CHUNK` such pieces bound the memory).
 
-    The pieces go in size classes (radius halving from the largest), each with its own KD-tree; the small ones
-    first, so that ``best`` has tightened when the few large ones, looked up over a larger ball, come.
-    ``tell(done, total)``, optional, is told the pairs (point, piece within its ball) done, of ``sum(count)``.
+    The candidates come down a box hierarchy (:func:`_box_tree`): a node whose box lies farther than ``best`` (+ the
+    rounding ``slack``) holds no piece that can be nearer. The pieces left are measured where their centroid bound
+    also lets them beat ``best``: every piece that can reach the minimum is measured, so it is the same number as an
+    all-pairs search's. ``tell(done, total)``, optional, is told the pairs (point, piece within its ball) done, of
+    ``sum(count)``.
     """
-    from scipy.spatial import cKDTree
-
     if not len(idx):
         return
-    top = float(radius.max())
-    level = np.minimum(np.floor(np.log2(top / np.maximum(radius, 1e-300))), classes - 1).astype(np.int64)
-    groups = []
-    for c in range(classes - 1, -1, -1):
-        members = np.flatnonzero(level == c)
-        if len(members):
-            groups.append((members, float(radius[members].max()), cKDTree(centre[members])))
+    order, levels = _box_tree(tri)
     pairs = np.cumsum(count)
     s = 0
     while s < len(idx):
         e = s + max(1, int(np.searchsorted(np.cumsum(count[s:]), _PAIR_CHUNK)))
         i = idx[s:e]
         s = e
-        q = p[i]
-        for members, r, tree in groups:
-            lists = tree.query_ball_point(q, best[i] + r + slack)
-            lengths = np.fromiter(map(len, lists), dtype=np.int64, count=len(lists))
-            rows = np.repeat(np.arange(len(i)), lengths)
-            if not len(rows):
-                continue
-            # (flattened in one pass: an array per point cost more than the distances on a CAD export's samples)
-            cols = members[np.fromiter(itertools.chain.from_iterable(lists), dtype=np.int64, count=len(rows))]
-            near = np.linalg.norm(q[rows] - centre[cols], axis=1) - radius[cols] <= best[i][rows] + slack
-            rows, cols = rows[near], cols[near]
-            sub = best[i]
-            np.minimum.at(sub, rows, _point_triangle_distance(q[rows], tri[cols]))
-            best[i] = sub
+        q, bound = p[i], best[i] + slack
+        rows, node = np.arange(len(i)), np.zeros(len(i), dtype=np.int64)
+        for lo, hi in levels[1:]:  # (a child's box: the parent's within the bound, its own tested)
+            rows, node = np.repeat(rows, 2), (2 * np.repeat(node, 2) + np.tile([0, 1], len(node)))
+            keep = _box_gap(q[rows], lo[node], hi[node]) <= bound[rows]
+            rows, node = rows[keep], node[keep]
+        cols = order[node]
+        near = np.linalg.norm(q[rows] - centre[cols], axis=1) - radius[cols] <= bound[rows]
+        rows, cols = rows[near], cols[near]
+        sub = best[i]
+        np.minimum.at(sub, rows, _point_triangle_distance(q[rows], tri[cols]))
+        best[i] = sub
         if tell is not None:
             tell(int(pairs[s - 1]), int(pairs[-1]))
 

@@ -489,3 +489,29 @@ def test_pieces_cover_the_same_area_with_the_largest_cut_first():
     assert r.max() <= radius(tri).max() / 4  # the box's 40-long slivers are cut
     # stopped at the target, or where cutting the next largest (within 1/√2 of the largest) would pass the budget
     assert r.max() <= target or len(pieces) + (r > max(target, r.max() / np.sqrt(2))).sum() > budget
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_mesh_distance_is_the_all_pairs_minimum_to_the_last_bit(seed):
+    """The box hierarchy and the box bounds only rule pieces out: the distance is the least over every piece
+    (:func:`recon.deviation._pieces`) of the same point–triangle distance, bit for bit, on slivers (a CAD export's
+    fans, long and thin) with points on, near and far from them."""
+    import sys
+
+    dev = sys.modules["recon.deviation"]
+    rng = np.random.default_rng(seed)
+    m = 300
+    base = rng.uniform(-10, 10, (m, 3))
+    long = rng.normal(size=(m, 3)) * rng.uniform(2, 20, (m, 1))
+    thin = rng.normal(size=(m, 3)) * 0.01
+    v = np.concatenate([base, base + long, base + long / 2 + thin])
+    f = np.arange(3 * m).reshape(3, m).T
+    tri = v[f]
+    w = rng.dirichlet(np.ones(3), 400)
+    on = np.einsum("nk,nkd->nd", w, tri[rng.integers(0, m, 400)])
+    pts = np.concatenate([on, on + rng.normal(size=on.shape) * 1e-3, rng.uniform(-40, 40, (400, 3))])
+    got, exact = dev.mesh_distance(v, f, pts)
+    pieces = dev._pieces(tri)
+    want = np.array([dev._point_triangle_distance(np.repeat(q[None], len(pieces), 0), pieces).min() for q in pts])
+    assert exact.all()
+    assert np.array_equal(got, want)
