@@ -81,6 +81,19 @@ def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     assert not [n for n in found.notes if "not proven" in n]
 
 
+def test_a_variable_fillet_cut_into_pieces_at_kinks_is_not_given_as_faces(tmp_path):
+    """Export seed 30: a variable-radius fillet (one B-spline face) that the second pass cut into 6 cylinders and 4
+    planes of 1-3 triangles, meeting at kinks of 4.5-11 degrees a blend cannot have: 16 faces for 7, which recon wrote
+    with exit 0. Faces the loose rims made, with kinks left, are not proven: the path gives up and the decomposition
+    takes the mesh (the command then gives the 7 faces, as before the second pass)."""
+    from bench.corpus.truth import materialise
+
+    truth = materialise(30, "export", tmp_path)
+    mesh = load_mesh(str(truth.mesh))
+    eps = roundoff(mesh.vertices)
+    assert exact_faces(mesh, TOL_SHARE * float(mesh.diagonal), plane_atoms(mesh, eps)) is None
+
+
 def test_a_variable_fillet_cut_into_a_cone_and_planes_takes_its_end_quads_through_loose_rims(tmp_path):
     """Export seed 65: a variable-radius fillet (one B-spline face of 8 triangles, 9 vertices) lies on a cone: 7 of its
     vertices to round-off, the end quads' other 2, which the planes beside them hold to round-off, within 9.1

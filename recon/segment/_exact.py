@@ -659,8 +659,10 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
     slack = held_slack(at, curved, eps, max(tolerance, eps))
+    first = {tuple(r) for r, _ in curved}
     if slack is not None:
         at, curved = _curved_stage(at, slack, sag, curved, tally)
+    loosened = {tuple(r) for r, _ in curved} != first
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
@@ -700,11 +702,13 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         labels, fits = _relabelled(labels, fits, whole)
         loose = _loose_singles(mesh, labels, fits)
         notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
-    why = _gives_up(pairs, labels, fits, int(loose.sum()))
+    kinks = _kinks(mesh, pairs, labels, fits, eps)
+    # faces the loose rims made are proven only where no kink is left: else a blend cut into pieces (export seeds 25, 30)
+    why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "")
     if why:
         log.info("exact: %s", why)
         return None
-    return ExactFaces(labels, fits, notes + _kinks(mesh, pairs, labels, fits, eps))
+    return ExactFaces(labels, fits, notes + kinks)
 
 
 def _kinks(mesh: Mesh, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: float) -> list[str]:
