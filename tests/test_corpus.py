@@ -245,7 +245,6 @@ def test_a_hanging_measurement_is_cut_at_the_limit_and_keeps_its_solid_check(mon
     assert M._measured(None, None, 0, timeout=30.0) == {"valid": False, "faces_ours": 3}
 
 
-
 def test_a_cone_split_in_halves_on_one_surface_counts_once_in_the_joined_truth(tmp_path):
     """Export seed 45's countersink is two half-cones on one surface (26 faces): joined, 25 — the count a mesh can
     prove. The report scores recon's count against both and calls an exit 0 wrong only against the joined one."""

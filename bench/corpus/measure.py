@@ -187,9 +187,9 @@ def run_freecad(mesh: Path, *, timeout: float) -> dict:
 
 
 def _unified(truth) -> int | None:
-    """The true face count with neighbouring faces on one surface joined: the real parts' from their metadata, a
-    generated part's from its STEP (its builder splits some cones and cylinders in two halves that meet on one
-    surface, which no mesh can tell apart: export seed 45's countersink)."""
+    """The true face count with neighbouring faces on one surface joined, from the part's metadata (recorded where the
+    part is made); from its STEP for a part cached before it was recorded. (The builder splits some cones and
+    cylinders in two halves that meet on one surface, which no mesh can tell apart: export seed 45's countersink.)"""
     if "faces_unified" in truth.meta:
         return truth.meta["faces_unified"]
     from .real import unified_faces

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .parts import part
-from .real import is_real, real_meta, real_step
+from .real import is_real, real_meta, real_step, unified_faces
 from .regimes import is_watertight, planar_polygons, tessellate_info, write_obj
 
 DEFAULT_CACHE = Path(__file__).resolve().parent / "out" / "cache"
@@ -66,6 +66,7 @@ def true_part(seed: int, cache: Path = DEFAULT_CACHE):
     # the STEP is the truth (meshes are made from it); what writing it changed is recorded
     meta["step_volume_error"] = float(back.volume / solid.volume - 1)
     meta["step_faces"] = len(back.faces())
+    meta["faces_unified"] = unified_faces(back)  # (the count a mesh can prove: bench/corpus/README.md, faces)
     meta["generate_seconds"] = round(time.perf_counter() - t0, 3)  # the part and its STEP round trip
     write_json(js, meta)
     return step, meta

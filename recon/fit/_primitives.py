@@ -523,8 +523,9 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         See :func:`fit_plane`.
     exact : bool
         The points lie on the surface to round-off (a CAD export's vertices): a refinement that its evaluation budget
-        stopped at a spindle torus, or short of the ``tolerance``, is continued (plain least squares, nothing to down-weight) while it still gains,
-        up to :data:`_EXACT_NFEV` evaluations, as it was still descending a valley, not at the answer.
+        stopped at a spindle torus, or short of the ``tolerance``, is continued (plain least squares, nothing to
+        down-weight) while it still gains, up to :data:`_EXACT_NFEV` evaluations, as it was still descending a valley,
+        not at the answer.
 
     Returns
     -------

@@ -659,10 +659,11 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
     slack = held_slack(at, curved, eps, max(tolerance, eps))
-    first = {tuple(r) for r, _ in curved}
+    loosened = False
     if slack is not None:
+        first = {tuple(r) for r, _ in curved}
         at, curved = _curved_stage(at, slack, sag, curved, tally)
-    loosened = {tuple(r) for r, _ in curved} != first
+        loosened = {tuple(r) for r, _ in curved} != first
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
@@ -703,7 +704,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         loose = _loose_singles(mesh, labels, fits)
         notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
     kinks = _kinks(mesh, pairs, labels, fits, eps)
-    # faces the loose rims made are proven only where no kink is left: else a blend cut into pieces (export seeds 25, 30)
+    # faces the loose rims made are proven only where no kink is left: else a blend cut up (export seeds 25, 30)
     why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "")
     if why:
         log.info("exact: %s", why)
