@@ -94,6 +94,17 @@ def test_a_variable_fillet_cut_into_pieces_at_kinks_is_not_given_as_faces(tmp_pa
     assert exact_faces(mesh, TOL_SHARE * float(mesh.diagonal), plane_atoms(mesh, eps)) is None
 
 
+def test_a_face_the_loose_rims_made_is_kept_where_its_turn_is_the_fits_own_tilt(tmp_path):
+    """Export seed 39: the second pass finds a cone of 12 triangles (rims within the tolerance) that a plane of one
+    triangle meets tangentially; the turn there, 1.7e-4 rad, is above the triangle's round-off tilt but under the
+    tilt of a surface fitted through rims missing by the tolerance (2 tol over the cone's reach, >= 4.9e-4 rad), so it is
+    not a kink: the path gives the true 31 faces, each one true face, where it gave up (and the decomposition 17)."""
+    found, true, meta = _corpus_faces(39, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"]
+    for p in range(int(found.labels.max()) + 1):
+        assert len(np.unique(true[found.labels == p])) == 1
+
+
 def test_a_variable_fillet_cut_into_a_cone_and_planes_takes_its_end_quads_through_loose_rims(tmp_path):
     """Export seed 65: a variable-radius fillet (one B-spline face of 8 triangles, 9 vertices) lies on a cone: 7 of its
     vertices to round-off, the end quads' other 2, which the planes beside them hold to round-off, within 9.1

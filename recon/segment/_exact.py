@@ -21,12 +21,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FitError
-from ..fit import (CLOSED_KINDS, SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus,
-                   surface_normals)
+from ..fit import CLOSED_KINDS, SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
+from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_merge import merge_curved
 from ._exact_split import split_atoms
@@ -659,11 +659,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # a second pass where a vertex a found face holds to round-off may miss the face beside it by up to the run's
     # tolerance: the STEP's tolerant edges put a curved face's rim on its neighbour's surface, not on its own
     slack = held_slack(at, curved, eps, max(tolerance, eps))
+    made = np.zeros(len(F), bool)  # triangles of the faces only the second pass found
     loosened = False
     if slack is not None:
-        first = {tuple(r) for r, _ in curved}
+        first = {tuple(np.sort(np.concatenate([at.tris[a] for a in r]))) for r, _ in curved}
         at, curved = _curved_stage(at, slack, sag, curved, tally)
-        loosened = {tuple(r) for r, _ in curved} != first
+        second = {tuple(np.sort(np.concatenate([at.tris[a] for a in r]))) for r, _ in curved}
+        made[list({t for r in second - first for t in r})] = True
+        loosened = second != first
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a
     # cylinder's arc a sphere whose chords lie 12x farther than the cylinder's, and dropped them as planes (seed 20)
     taken = np.zeros(len(at.tris), bool)
@@ -703,44 +706,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         labels, fits = _relabelled(labels, fits, whole)
         loose = _loose_singles(mesh, labels, fits)
         notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
-    kinks = _kinks(mesh, pairs, labels, fits, eps)
+    kinks = _kinks(mesh, pairs, labels, fits, eps, np.bincount(labels, made, len(fits)) > 0, max(tolerance, eps),
+                   COS_CREASE, frozenset(KIND_PARAMS))
     # faces the loose rims made are proven only where no kink is left: else a blend cut up (export seeds 25, 30)
     why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "")
     if why:
         log.info("exact: %s", why)
         return None
     return ExactFaces(labels, fits, notes + kinks)
-
-
-def _kinks(mesh: Mesh, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: float) -> list[str]:
-    """A note when a plane of one or two triangles meets a curved face across a smooth edge at a kink: the curved
-    surface's normal at the edge's ends turns from the triangle's by more than the triangle's own round-off tilt
-    (2 eps over its shortest height). A blend meets the faces it rounds tangentially; a strip's end quad at a kink
-    is where a variable-radius blend (a B-spline no analytic surface holds) was cut into a cone and planes, so the
-    face count there is not proven (measured: bench/exact.md)."""
-    V, F = mesh.vertices, mesh.faces
-    ends = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
-    count = np.bincount(labels)
-    n = mesh.face_normals
-    small_plane = np.array([fits[p].type == "plane" and count[p] <= 2 for p in range(len(fits))])
-    la, lb = labels[pairs[:, 0]], labels[pairs[:, 1]]
-    # only smooth edges between two faces, one of them a plane of one or two triangles: the rest cannot be a kink
-    near = (la != lb) & (small_plane[la] | small_plane[lb])
-    near &= np.einsum("ij,ij->i", n[pairs[:, 0]], n[pairs[:, 1]]) >= COS_CREASE
-    found = 0
-    for (t, u), e in zip(pairs[near], ends[near]):
-        a, b = int(labels[t]), int(labels[u])
-        for tri, p, c in ((t, a, b), (u, b, a)):
-            if not small_plane[p] or fits[c].type not in KIND_PARAMS:
-                continue
-            P = V[F[tri]]
-            height = np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0])) / np.linalg.norm(P - P[[1, 2, 0]], axis=1).max()
-            turn = np.arccos(np.clip(np.abs(surface_normals(fits[c], V[e]) @ n[tri]), 0.0, 1.0)).max()
-            found += bool(turn > 2 * eps / height)
-    if not found:
-        return []
-    return [f"face count not proven: {found} edge(s) where a plane of one or two triangles meets a curved face at a "
-            f"kink, not tangentially (a variable-radius blend cut into analytic pieces?)"]
 
 
 def _relabelled(labels: np.ndarray, fits: dict, whole: list) -> tuple[np.ndarray, dict]:
