@@ -25,6 +25,7 @@ from ..fit import (CLOSED_KINDS, SurfaceFit, fit_bspline_surface, fit_cone, fit_
                    surface_normals)
 from ..mesh import Mesh
 from ._context import own_normals
+from ._exact_crease import creased_note
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
@@ -705,7 +706,9 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         notes.append(f"{len(whole)} free-form face(s) taken whole: one B-spline holds the pieces the path found")
     kinks = _kinks(mesh, pairs, labels, fits, eps)
     # faces the loose rims made are proven only where no kink is left: else a blend cut up (export seeds 25, 30)
-    why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "")
+    why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "") or creased_note(
+        V, F, mesh.face_normals, pairs, labels, [fits[p].type for p in range(len(fits))],
+        lambda tris: _bspline_through(V, F, tris, tolerance))
     if why:
         log.info("exact: %s", why)
         return None
