@@ -19,7 +19,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["crease_inside", "MIN_SIDE_VERTICES"]
+__all__ = ["MIN_SIDE_VERTICES", "crease_inside", "creased_note"]
 
 #: A side must give a B-spline of its own: the fitter's smallest patch (a 4×4 bicubic control grid).
 MIN_SIDE_VERTICES = 16
