@@ -24,6 +24,7 @@ from ..errors import FitError
 from ..fit import CLOSED_KINDS, SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ..mesh import Mesh
 from ._context import own_normals
+from ._exact_crease import creased_note
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
 from ._exact_kinks import kinks as _kinks
@@ -709,7 +710,9 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     kinks = _kinks(mesh, pairs, labels, fits, eps, np.bincount(labels, made, len(fits)) > 0, max(tolerance, eps),
                    COS_CREASE, frozenset(KIND_PARAMS))
     # faces the loose rims made are proven only where no kink is left: else a blend cut up (export seeds 25, 30)
-    why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "")
+    why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "") or creased_note(
+        V, F, mesh.face_normals, pairs, labels, [fits[p].type for p in range(len(fits))],
+        lambda tris: _bspline_through(V, F, tris, tolerance))
     if why:
         log.info("exact: %s", why)
         return None
