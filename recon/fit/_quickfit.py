@@ -244,7 +244,13 @@ def _normal_constants(fit: SurfaceFit):
 
 
 def surface_normals(fit: SurfaceFit, pts: np.ndarray) -> np.ndarray:
-    """(n, 3) unit normals of the fitted analytic surface at its points nearest ``pts`` (n, 3) (any sign)."""
+    """(n, 3) unit normals of the fitted surface (analytic or B-spline) at its points nearest ``pts`` (n, 3) (any
+    sign)."""
+    if fit.type == "bspline":
+        surface = fit.surface
+        uv = surface.closest_parameters(pts)
+        _, su, sv = surface.derivatives(uv[:, 0], uv[:, 1])
+        return _unit_rows(np.cross(su, sv))
     c = _normal_constants(fit)
     if fit.type == "plane":
         # np.broadcast_to(normal, pts.shape): the same read-only stride-0 view, without its Python (~15 us)

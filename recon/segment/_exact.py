@@ -629,6 +629,11 @@ def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list, tally: list[int
     return at, curved
 
 
+def _tri_sets(at: _Atoms, regions: list) -> set[tuple]:
+    """Each region's triangles, sorted, as a set: regions compared across passes that may split atoms differently."""
+    return {tuple(np.sort(np.concatenate([at.tris[a] for a in r])).tolist()) for r, _ in regions}
+
+
 def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -> ExactFaces | None:
     """The faces of a mesh with exact vertices and their surfaces (see the module's text).
 
@@ -663,9 +668,9 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     made = np.zeros(len(F), bool)  # triangles of the faces only the second pass found
     loosened = False
     if slack is not None:
-        first = {tuple(np.sort(np.concatenate([at.tris[a] for a in r]))) for r, _ in curved}
+        first = _tri_sets(at, curved)
         at, curved = _curved_stage(at, slack, sag, curved, tally)
-        second = {tuple(np.sort(np.concatenate([at.tris[a] for a in r]))) for r, _ in curved}
+        second = _tri_sets(at, curved)
         made[list({t for r in second - first for t in r})] = True
         loosened = second != first
     # each region judged by its best surface too, not only its seed's: the simplest type first made three quads of a

@@ -19,6 +19,9 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..fit import surface_normals
+from ._exact_enclosed import components
+
 __all__ = ["MIN_SIDE_VERTICES", "crease_inside", "creased_note"]
 
 #: A side must give a B-spline of its own: the fitter's smallest patch (a 4×4 bicubic control grid).
@@ -61,22 +64,11 @@ def _big_sides(F: np.ndarray, tris: np.ndarray, inner: np.ndarray, angle: np.nda
         return None  # the piece is not connected over its inner edges: no cut makes its sides
     if last < 0:
         return None
-    parent = list(range(len(tris)))
-    for e in order[:last + 1].tolist():
-        a, b = root(local[int(inner[e, 0])]), root(local[int(inner[e, 1])])
-        parent[b] = a
-    roots = np.array([root(i) for i in range(len(tris))])
-    sides = [tris[roots == r] for r in np.unique(roots)]
+    joined = order[:last + 1]
+    a, b = (np.array([local[int(t)] for t in inner[joined, k]], dtype=np.int64) for k in (0, 1))
+    comp = components(len(tris), a, b, np.ones(len(tris), bool))
+    sides = [tris[comp == r] for r in np.unique(comp)]
     return [s for s in sides if len(np.unique(F[s])) >= MIN_SIDE_VERTICES]
-
-
-def _bspline_normals(fit: Any, points: np.ndarray) -> np.ndarray:
-    """Unit normals (k, 3) of a B-spline fit at the points nearest ``points`` (k, 3)."""
-    surface = fit.surface
-    uv = surface.closest_parameters(points)
-    _, su, sv = surface.derivatives(uv[:, 0], uv[:, 1])
-    n = np.cross(su, sv)
-    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
 def crease_inside(V: np.ndarray, F: np.ndarray, normals: np.ndarray, tris: np.ndarray, pairs: np.ndarray,
@@ -114,7 +106,7 @@ def crease_inside(V: np.ndarray, F: np.ndarray, normals: np.ndarray, tris: np.nd
             shared = np.intersect1d(F[sides[i]], F[sides[j]])
             if not across.any() or len(shared) == 0:
                 continue
-            ni, nj = _bspline_normals(fits[i], V[shared]), _bspline_normals(fits[j], V[shared])
+            ni, nj = surface_normals(fits[i], V[shared]), surface_normals(fits[j], V[shared])
             jump = float(np.median(np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", ni, nj)), 0.0, 1.0))))
             if jump > float(np.median(angle[across])) / 2:
                 found.append(jump)

@@ -19,10 +19,10 @@ from typing import Any, Callable
 import numpy as np
 import scipy.sparse as sp
 
-__all__ = ["enclosed_free_form"]
+__all__ = ["components", "enclosed_free_form"]
 
 
-def _components(k: int, a: np.ndarray, b: np.ndarray, keep: np.ndarray) -> np.ndarray:
+def components(k: int, a: np.ndarray, b: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """Connected components (k,) of the faces over the pairs (a, b) whose both ends are in ``keep``."""
     m = keep[a] & keep[b]
     g = sp.coo_matrix((np.ones(int(m.sum())), (a[m], b[m])), shape=(k, k))
@@ -69,14 +69,14 @@ def enclosed_free_form(labels: np.ndarray, kinds: list, pairs: np.ndarray, smoot
     candidate = ~seed & ~proven
     # a group of candidate faces joins the free-form pieces when every face it borders smoothly is one of them or a
     # plane they border
-    comp = _components(k, a, b, candidate)
+    comp = components(k, a, b, candidate)
     outside = candidate[a] & ~candidate[b]
     bad = np.zeros(k, bool)
     bad[comp[a[outside & ~seed[b] & ~rim[b]]]] = True
     touches = np.zeros(k, bool)
     touches[comp[a[outside & seed[b]]]] = True
     joined = seed | (candidate & touches[comp] & ~bad[comp])
-    whole = _components(k, a, b, joined)
+    whole = components(k, a, b, joined)
     out = []
     for g in np.unique(whole[seed]):
         faces = np.flatnonzero(joined & (whole == g))
