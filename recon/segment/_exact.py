@@ -29,7 +29,7 @@ from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
 from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
-from ._exact_memo import Failures, question
+from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
@@ -286,7 +286,7 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
 def _asked(at: _Atoms, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float, *, first: bool = True,
            above: str | None = None) -> list[SurfaceFit]:
     """:func:`_candidates` of the vertices ``ids`` and triangles ``tris``, from ``at.memo`` when asked before."""
-    key = question(ids, tris, np.full(len(ids), float(eps)) if np.ndim(eps) == 0 else eps[ids], sag, first, above)
+    key = question(ids, tris, per_vertex(eps, ids), sag, first, above)
     if key not in at.memo:
         at.memo[key] = _candidates(at.mesh.vertices, at.mesh.faces, ids, tris, eps, sag, first=first, above=above)
     return at.memo[key]
@@ -295,7 +295,7 @@ def _asked(at: _Atoms, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float, 
 def _union_fit(at: _Atoms, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float) -> SurfaceFit | None:
     """The simplest surface holding a union of regions (:func:`_asked`), or None; None at once when the union holds
     one that failed at no looser round-off (``at.failed``)."""
-    e = np.full(len(ids), float(eps)) if np.ndim(eps) == 0 else np.asarray(eps)[ids]
+    e = per_vertex(eps, ids)
     if at.failed.implied(ids, e):
         return None
     fit = next(iter(_asked(at, ids, tris, eps, sag)), None)

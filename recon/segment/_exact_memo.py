@@ -8,7 +8,12 @@ import hashlib
 
 import numpy as np
 
-__all__ = ["Failures", "question"]
+__all__ = ["Failures", "per_vertex", "question"]
+
+
+def per_vertex(eps: float | np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """The round-off of each vertex ``ids``: ``eps`` is one for all, or an array over the mesh's vertices."""
+    return np.full(len(ids), float(eps)) if np.ndim(eps) == 0 else np.asarray(eps)[ids]
 
 
 def question(ids: np.ndarray, tris: np.ndarray, e: np.ndarray, sag: float, first: bool, above: str | None) -> bytes:
