@@ -32,14 +32,16 @@ class Failures:
     round-off on its vertices, has none either (no surface holds a set that holds a part it failed on)."""
 
     def __init__(self) -> None:
-        self.sets: list[tuple[frozenset, np.ndarray, np.ndarray]] = []
+        # by each failed union's smallest vertex: a set holds only the unions whose smallest vertex it holds
+        self.by_first: dict[int, list[tuple[frozenset, np.ndarray, np.ndarray]]] = {}
 
     def implied(self, ids: np.ndarray, e: np.ndarray) -> bool:
         """Whether the vertices ``ids`` (sorted) at round-off ``e`` hold a failed union at its round-off or a
         tighter one."""
         have = set(ids.tolist())
-        return any(f <= have and bool(np.all(e[np.searchsorted(ids, f_ids)] <= f_e)) for f, f_ids, f_e in self.sets)
+        return any(f <= have and bool(np.all(e[np.searchsorted(ids, f_ids)] <= f_e))
+                   for v in have.intersection(self.by_first) for f, f_ids, f_e in self.by_first[v])
 
     def add(self, ids: np.ndarray, e: np.ndarray) -> None:
-        """Record that no surface holds the vertices ``ids`` at round-off ``e``."""
-        self.sets.append((frozenset(ids.tolist()), np.asarray(ids), np.asarray(e)))
+        """Record that no surface holds the vertices ``ids`` (sorted, not empty) at round-off ``e``."""
+        self.by_first.setdefault(int(ids[0]), []).append((frozenset(ids.tolist()), np.asarray(ids), np.asarray(e)))
