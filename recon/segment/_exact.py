@@ -29,6 +29,7 @@ from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
 from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
+from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
@@ -174,6 +175,9 @@ class _Atoms:
     verts: list
     nbrs: list
     turn: dict
+    #: what the path asked already, shared by the atoms a split makes (:mod:`._exact_memo`)
+    memo: dict = field(default_factory=dict, repr=False)
+    failed: Failures = field(default_factory=Failures, repr=False)
 
     def smooth(self, a: int, b: int) -> bool:
         """Whether atoms ``a`` and ``b`` meet at no crease (:data:`CREASE_RAD`)."""
@@ -181,7 +185,7 @@ class _Atoms:
         return self.turn.get(min(a, b) * k + max(a, b), -1.0) >= COS_CREASE
 
     @classmethod
-    def of(cls, mesh: Mesh, labels: np.ndarray) -> "_Atoms":
+    def of(cls, mesh: Mesh, labels: np.ndarray, shared: "_Atoms | None" = None) -> "_Atoms":  # shared: its memo
         k = int(labels.max()) + 1
         order = np.argsort(labels, kind="stable")
         bounds = np.searchsorted(labels[order], np.arange(k + 1))
@@ -202,7 +206,8 @@ class _Atoms:
         order2 = np.lexsort((cos, key))
         first = np.r_[True, key[order2][1:] != key[order2][:-1]]
         turn = dict(zip(key[order2][first].tolist(), cos[order2][first].tolist()))
-        return cls(mesh, labels, tris, verts, nbrs, turn)
+        return cls(mesh, labels, tris, verts, nbrs, turn) if shared is None else cls(
+            mesh, labels, tris, verts, nbrs, turn, shared.memo, shared.failed)
 
     def points(self, atoms) -> tuple[np.ndarray, np.ndarray]:
         """(vertex ids, triangles) of a set of atoms."""
@@ -278,6 +283,27 @@ def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray,
     return out
 
 
+def _asked(at: _Atoms, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float, *, first: bool = True,
+           above: str | None = None) -> list[SurfaceFit]:
+    """:func:`_candidates` of the vertices ``ids`` and triangles ``tris``, from ``at.memo`` when asked before."""
+    key = question(ids, tris, per_vertex(eps, ids), sag, first, above)
+    if key not in at.memo:
+        at.memo[key] = _candidates(at.mesh.vertices, at.mesh.faces, ids, tris, eps, sag, first=first, above=above)
+    return at.memo[key]
+
+
+def _union_fit(at: _Atoms, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float) -> SurfaceFit | None:
+    """The simplest surface holding a union of regions (:func:`_asked`), or None; None at once when the union holds
+    one that failed at no looser round-off (``at.failed``)."""
+    e = per_vertex(eps, ids)
+    if at.failed.implied(ids, e):
+        return None
+    fit = next(iter(_asked(at, ids, tris, eps, sag)), None)
+    if fit is None:
+        at.failed.add(ids, e)
+    return fit
+
+
 def _seed(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, *, rings: bool):
     """A curved surface through atom ``s`` and some of its free small neighbours: ``(atoms, fit)`` or None.
 
@@ -303,7 +329,7 @@ def _seed(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, *, rings: 
             continue
         seen.add(tuple(c))
         ids, tris = at.points(c)
-        fits = _candidates(V, F, ids, tris, eps, sag)
+        fits = _asked(at, ids, tris, eps, sag)
         if fits:
             return list(c), fits[0]
     return None
@@ -347,7 +373,7 @@ def _grow(at: _Atoms, region: list, fit: SurfaceFit, free: np.ndarray, eps: Tol,
             tries, refit_at = tries + 1, len(region)
             ids, tris = at.points(region + [a])
             # otherwise only a more complex type: an exact surface of the same type would be the same surface
-            fits = _candidates(V, F, ids, tris, eps, sag, above=_simpler(fit.type) if doubled else fit.type)
+            fits = _asked(at, ids, tris, eps, sag, above=_simpler(fit.type) if doubled else fit.type)
             if not fits:
                 rejected.add(a)
                 continue
@@ -373,7 +399,7 @@ def _chained(at: _Atoms, s: int, free: np.ndarray, eps: Tol, sag: float, nbr: li
     if not c:
         return None
     ids, tris = at.points(c)
-    fits = _candidates(at.mesh.vertices, at.mesh.faces, ids, tris, eps, sag)
+    fits = _asked(at, ids, tris, eps, sag)
     if not fits:
         return None
     region, fit = _grow(at, list(c), fits[0], free, eps, sag)
@@ -487,7 +513,7 @@ def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) 
     (rulings), then the simplest; and the report's note when several fit ("" when one does)."""
     V, F = at.mesh.vertices, at.mesh.faces
     ids, tris = at.points(region)
-    fits = _candidates(V, F, ids, tris, eps, sag, first=False) or [fit]
+    fits = _asked(at, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
         return fits[0], ""
     rank = [(-_on_chords(f, V, F, tris, _floor(eps)), i) for i, f in enumerate(fits)]
@@ -613,15 +639,15 @@ def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list, tally: list[int
     # plane atoms that hold a curved face's triangle and a tangent neighbour's in one plane split between them
     at, split = split_atoms(at, curved, _floor(eps), COS_CREASE,
                             lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag),
-                            lambda labels: _Atoms.of(mesh, labels))
+                            lambda labels: _Atoms.of(mesh, labels, at))
     if split is not curved:
         curved = reclaim(at, split, eps, sag)
     # runs of plane strips no seed explained (a cylinder one quad wide between fillets: seed 15), then merged as bands
-    curved = strip_faces(at, curved, _floor(eps), lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None))
+    curved = strip_faces(at, curved, _floor(eps), lambda ids, tris: next(iter(_asked(at, ids, tris, eps, sag)), None))
     # bands of one torus (two latitude circles lie on a cone, a cylinder or a sphere) joined when one surface holds
     # them; the joined face then reclaims the 2-triangle planes between its bands, which may join more (seed 35)
     for _ in range(MERGE_ROUNDS):
-        merged = merge_curved(at, curved, lambda ids, tris: next(iter(_candidates(V, F, ids, tris, eps, sag)), None),
+        merged = merge_curved(at, curved, lambda ids, tris: _union_fit(at, ids, tris, eps, sag),
                               lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag))
         if len(merged) == len(curved):
             break

@@ -8,10 +8,13 @@ A sphere, a cylinder, a cone and a torus are each the zero set of a polynomial i
 - torus: every Darboux cyclide, the quadrics with {s·x, s·y, s·z, s²} (14): (|p−c|² + R² − r²)² = 4R² |(p−c)×a|²
   expands into just these.
 
-If a surface of the family holds every point within ``eps``, its coefficient vector c (|c| = 1) gives
-|M c| ≤ √n · eps · G with M the points' monomials and G the largest norm of the monomials' Jacobian over the points
-(a point ``eps`` off the surface has |f| ≤ eps |∇f| ≤ eps G). So the smallest singular value of M above that bound
-proves that no surface of the family holds them: one SVD instead of a nonlinear fit that would fail. numpy only.
+A point δ off the zero set of f has |f| = δ |∇f| to first order, so if a surface of the family holds every point
+within ``eps``, its coefficient vector c gives Σ f² ≤ eps² Σ |∇f|², i.e. |M c| ≤ eps |J c| with M the points'
+monomials and J their stacked gradients (the constant, whose gradient is 0, is taken out by centring M's columns).
+The smallest generalised singular value min |M c| / |J c| above that bound proves that no surface of the family
+holds them: two small SVDs instead of a nonlinear fit that would fail. Each surface is weighed by its own gradient at
+the points, not by the largest gradient any unit coefficient vector has (stop 39: a torus band's quadrics, ruled out
+where the bound by the largest gradient was 5× looser; bench/exact.md "s39-time"). numpy only.
 """
 
 from __future__ import annotations
@@ -23,9 +26,14 @@ __all__ = ["FAMILY_OF", "impossible_types"]
 #: The monomial family each curved type belongs to (see the module's text).
 FAMILY_OF = {"sphere": "sphere", "cylinder": "quadric", "cone": "quadric", "torus": "cyclide"}
 _COLUMNS = {"sphere": 5, "quadric": 10, "cyclide": 14}
-#: |∇f| varies over the ``eps``-neighbourhood of a point by O(eps / radius) ≪ 1; a factor of 2 covers it and the
-#: round-off of the SVD with room to spare (the test must never reject a surface that holds the points).
+#: |f| / |∇f| is the distance to the surface within a factor 1 + O(eps / radius) ≪ 2 (round-off is far below any
+#: radius a CAD face has); a factor of 2 covers it and the SVDs' round-off with room to spare (the test must never
+#: reject a surface that holds the points).
 MARGIN = 2.0
+#: A coefficient vector's gradient is floored at this share of the largest one's (|J c|² + (FLOOR σ₁ |c|)²): that only
+#: lowers the smallest ratio (a weaker proof, never a false one) and keeps the whitening finite where the points leave
+#: a polynomial's gradient 0 (a double plane through coplanar points).
+FLOOR = 1e-6
 
 
 def _monomials(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -48,24 +56,29 @@ def _monomials(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 _ORDER = {"sphere": [0, 1, 2, 3, 4], "quadric": list(range(10)), "cyclide": list(range(14))}
 
 
+def least_ratio(M: np.ndarray, J: np.ndarray) -> float:
+    """min over coefficient vectors c of |M c| / |J c| (see the module's text): column 0 of ``M`` is the constant,
+    taken out by centring the others; ``J`` (n, 3, k) holds the gradients of ``M``'s columns."""
+    A = M[:, 1:] - M[:, 1:].mean(axis=0)
+    _, S, Vt = np.linalg.svd(J[:, :, 1:].reshape(-1, M.shape[1] - 1), full_matrices=False)
+    S = np.sqrt(S * S + (FLOOR * S[0]) ** 2)
+    return float(np.linalg.svd((A @ Vt.T) / S, compute_uv=False)[-1])
+
+
 def impossible_types(P: np.ndarray, eps: float) -> set[str]:
     """The curved types (of :data:`FAMILY_OF`) no surface of which holds every point of ``P`` within ``eps``, as
-    proven by the smallest singular value of the family's monomials (see the module's text). A family with as many
-    columns as points, or more, always has a surface through them: it is never ruled out."""
+    proven by the smallest generalised singular value of the family's monomials and their gradients (see the
+    module's text). A family with as many columns as points, or more, always has a surface through them: it is never
+    ruled out."""
     P = np.asarray(P, dtype=float)
     n = len(P)
     c = P.mean(axis=0)
     r = float(np.linalg.norm(P - c, axis=1).max())
     if r <= 0 or n <= _COLUMNS["sphere"]:
         return set()
-    Q = (P - c) / r
-    M, J = _monomials(Q)
+    M, J = _monomials((P - c) / r)
     out: set[str] = set()
     for family, cols in _ORDER.items():
-        if n <= len(cols):
-            continue
-        sigma = float(np.linalg.svd(M[:, cols], compute_uv=False)[-1])
-        grad = float(np.linalg.norm(J[:, :, cols], ord=2, axis=(1, 2)).max())
-        if sigma > MARGIN * np.sqrt(n) * (eps / r) * grad:
+        if n > len(cols) and least_ratio(M[:, cols], J[:, :, cols]) > MARGIN * eps / r:
             out.update(t for t, f in FAMILY_OF.items() if f == family)
     return out
