@@ -143,8 +143,9 @@ def coplanar_pairs(mesh: Mesh, eps: float) -> np.ndarray:
 def exact_tessellation(mesh: Mesh, eps: float) -> bool:
     """Whether the mesh is a CAD tessellation with exact vertices: at least :data:`FLAT_SHARE` of its triangle pairs
     lie in one plane to round-off ``eps``, and its planes are drawn by their boundaries — at most
-    :data:`INNER_SHARE` of the vertices of coplanar triangles are inside a plane (every pair around them coplanar).
-    A scan's noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
+    :data:`INNER_SHARE` of the vertices of coplanar triangles are inside a plane (every pair around them coplanar)
+    next to another such vertex (a fan's centre, alone inside its disc, is allowed). A scan's noise leaves no coplanar
+    pairs; a remesher's planes have most of their vertices inside, next to each other."""
     pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
     if len(pairs) == 0:
         return False
@@ -161,7 +162,12 @@ def exact_tessellation(mesh: Mesh, eps: float) -> bool:
     rim = np.asarray(mesh.edge_face_count) != 2  # an open mesh's rim is no plane's inside
     crease[np.asarray(mesh.edges_unique)[rim].ravel()] = True
     inner = on & ~crease
-    return bool(inner.sum() <= INNER_SHARE * on.sum())
+    # a fan drawn from one centre (a disc's cap) is still drawn by its boundary: its centre has no inner neighbour
+    deep = np.zeros(n, bool)
+    e = np.asarray(mesh.edges_unique, dtype=np.int64).reshape(-1, 2)
+    both = inner[e[:, 0]] & inner[e[:, 1]]
+    deep[e[both].ravel()] = True
+    return bool(deep.sum() <= INNER_SHARE * on.sum())
 
 
 @dataclass
