@@ -179,8 +179,10 @@ def triangle_sag(mesh, *, block: int = 100_000) -> np.ndarray:
     less than :data:`SMOOTH_TURN` from this one (a crease splits the normals, as a renderer's smoothing angle does);
     along an edge i→j the surface then curves by κ_ij = (N_j − N_i)·(P_j − P_i) / ℓ², and a quadratic surface through
     the corners lies off the flat triangle by e(λ) = ½ Σ λ_i λ_j κ_ij ℓ_ij² at barycentric λ (the linear
-    interpolation error). The sag is its largest magnitude over the triangle: r (1 − cos(π / n)) for a regular n-gon
-    prism's facets, a² / (6 r) for an equilateral triangle of side a on a sphere of radius r; zero on planes. A
+    interpolation error), each κ_ij ℓ_ij² divided by cos²(φ_ij / 4) for the turn φ_ij between the corners' normals:
+    the circle's sag over the parabola's, so that an arc's midpoint sag is the circle's. The sag is its largest
+    magnitude over the triangle: r (1 − cos(π / n)) for a regular n-gon prism's facets, about a² / (6 r) for an
+    equilateral triangle of side a on a sphere of radius r; zero on planes. A
     triangle on a crease also gets the crease's own offset (:func:`_crease_sag`).
 
     Parameters
@@ -220,8 +222,11 @@ def triangle_sag(mesh, *, block: int = 100_000) -> np.ndarray:
         N /= np.maximum(np.linalg.norm(N, axis=1, keepdims=True), 1e-300)
         N = N.reshape(-1, 3, 3)
         P = V[F[t_ids]]
-        q = np.stack([np.einsum("ij,ij->i", N[:, j] - N[:, i], P[:, j] - P[:, i]) for i, j in ((0, 1), (1, 2), (2, 0))],
-                     axis=1)  # κ_ij ℓ_ij²
+        ends = ((0, 1), (1, 2), (2, 0))
+        q = np.stack([np.einsum("ij,ij->i", N[:, j] - N[:, i], P[:, j] - P[:, i]) for i, j in ends], axis=1)  # κ_ij ℓ_ij²
+        # the parabola's midpoint sag of an arc turning by φ is the circle's times cos²(φ/4): scaled back to the circle
+        phi = np.arccos(np.clip(np.stack([np.einsum("ij,ij->i", N[:, i], N[:, j]) for i, j in ends], axis=1), -1, 1))
+        q /= np.cos(phi / 4) ** 2
         pairs = np.stack([g[:, 0] * g[:, 1], g[:, 1] * g[:, 2], g[:, 2] * g[:, 0]], axis=1)  # (k, 3)
         out[t_ids] = 0.5 * np.abs(q @ pairs.T).max(axis=1)
     return np.maximum(out, _crease_sag(mesh, out))

@@ -11,8 +11,10 @@ Every figure is measured on recon's written STEP file, re-read (what a user gets
   B-rep, exact distance to the other; the true side's points also give the types), % of the true diagonal;
 - ``mesh_ours_p95`` / ``mesh_true_p95``: the mesh's vertices (at most :data:`MAX_VERTICES`, a seeded subset) to
   our B-rep and to the true one; the second is the floor the mesh's noise sets;
-- ``tolerance_pct``: the tolerance recon's report states; ``issue20_ok`` is False when recon exited 0 with an
-  ours→true p95 above it (issue 20: exit 0 must mean within tolerance).
+- ``tolerance_pct``: the tolerance recon's report states; ``stated_pct``: what it states between the mesh's vertices,
+  T + the mesh's chord sag (the verdict's shape→mesh p95 limit: a coarse mesh pins a curved face no closer there);
+  ``issue20_ok`` is False when recon exited 0 with an ours→true p95 above ``stated_pct`` (issue 20: exit 0 must mean
+  within what recon states).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .truth import DEFAULT_CACHE, materialise
+from .truth import DEFAULT_CACHE, cached, materialise
 
 #: vertices measured per mesh for mesh→ours / mesh→true (a p95 of 10,000 points: ±0.5 percentile points at 2σ)
 MAX_VERTICES = 10_000
@@ -198,6 +200,18 @@ def _unified(truth) -> int | None:
     return unified_faces(read_part(truth.step))
 
 
+def _materialised(seed: int, regime: str, cache: Path):
+    """:func:`materialise`, the meshing done in a spawned process: OpenCascade's mesher leaves worker threads in the
+    process that runs it, and a measurement forked from that process later hangs on their locks (seeds 101-103 of a
+    run on an empty cache: 180 s each against 1.7 s)."""
+    import multiprocessing
+
+    if not cached(seed, regime, cache):
+        with multiprocessing.get_context("spawn").Pool(1) as pool:
+            pool.apply(materialise, (seed, regime, cache))
+    return materialise(seed, regime, cache)  # read from the cache
+
+
 def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path | None = None,
              timeout: float = 600.0, memory_mb: int | None = 4096, freecad: bool = False, recon: bool = True) -> dict:
     """The row of one (seed, regime): generation, recon (unless ``recon`` is False: status ``no-recon``), measurement,
@@ -205,7 +219,7 @@ def run_case(seed: int, regime: str, *, cache: Path = DEFAULT_CACHE, keep: Path 
     row = {"seed": int(seed), "regime": regime}
     t0 = time.perf_counter()
     try:
-        truth = materialise(seed, regime, cache)
+        truth = _materialised(seed, regime, cache)
     except Exception as err:  # the generator failing is a row too (and a bug of the corpus to fix)
         row.update(status="generator", message=f"{type(err).__name__}: {err}"[:300])
         return row
@@ -234,6 +248,7 @@ def _recon_row(truth, seed: int, regime: str, *, keep: Path | None, timeout: flo
             try:
                 rep = json.loads(report.read_text())
                 row["tolerance_pct"] = 100 * rep["tolerance"] / truth.meta["diagonal"]
+                row["stated_pct"] = 100 * _stated(rep) / truth.meta["diagonal"]
                 row["recon_seconds"] = {k: v for k, v in rep.get("seconds", {}).items()}
                 row["recon_says_valid"] = bool(rep["validity"]["ok"])
             except (ValueError, KeyError) as err:
@@ -246,9 +261,18 @@ def _recon_row(truth, seed: int, regime: str, *, keep: Path | None, timeout: flo
             if keep is not None:
                 keep.mkdir(parents=True, exist_ok=True)
                 (keep / f"{regime}_seed_{seed:05d}.step").write_bytes(out.read_bytes())
-    if row.get("ours_true_p95") is not None and row.get("tolerance_pct") is not None:
-        row["issue20_ok"] = not (row["exit"] == 0 and row["ours_true_p95"] > row["tolerance_pct"])
+    if row.get("ours_true_p95") is not None and row.get("stated_pct") is not None:
+        row["issue20_ok"] = not (row["exit"] == 0 and row["ours_true_p95"] > row["stated_pct"])
     return row
+
+
+def _stated(report: dict) -> float:
+    """The distance recon's report states its faces lie within between the mesh's vertices: the tolerance T, or the
+    verdict's shape→mesh p95 limit T + the mesh's chord sag where that is larger."""
+    T = float(report["tolerance"])
+    rules = (report.get("verdict") or {}).get("rules", [])
+    limit = next((r.get("limit") for r in rules if r.get("rule") == "shape_to_mesh_p95"), None)
+    return max(T, float(limit)) if isinstance(limit, (int, float)) else T
 
 
 def run_job(job) -> dict:

@@ -82,6 +82,19 @@ def read_part(step: Path):
     return solids[0]
 
 
+def _mesh_files(seed: int, regime: str, cache: Path) -> tuple[Path, Path]:
+    folder = Path(cache) / regime
+    ext = ".obj" if regime == "export-obj" else ".stl"
+    return folder / f"{_stem(seed)}{ext}", folder / f"{_stem(seed)}.json"
+
+
+def cached(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> bool:
+    """Whether the case's part and mesh are in ``cache`` already (:func:`materialise` then only reads)."""
+    parts = Path(cache) / "parts"
+    part_ok = (parts / f"{_stem(seed)}.json").exists() and (is_real(seed) or (parts / f"{_stem(seed)}.step").exists())
+    return part_ok and all(p.exists() for p in _mesh_files(seed, regime, cache))
+
+
 def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
     """The true STEP and the mesh of ``seed`` in ``regime`` on disk (made once, then read from ``cache``)."""
     import trimesh
@@ -89,9 +102,8 @@ def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
     from recon._io import atomic_path, write_json
 
     step, meta = true_part(seed, cache)
-    folder = Path(cache) / regime
-    ext = ".obj" if regime == "export-obj" else ".stl"
-    mesh, js = folder / f"{_stem(seed)}{ext}", folder / f"{_stem(seed)}.json"
+    mesh, js = _mesh_files(seed, regime, cache)
+    folder = mesh.parent
     if mesh.exists() and js.exists():
         return Truth(seed, regime, step, mesh, meta, json.loads(js.read_text()))
     folder.mkdir(parents=True, exist_ok=True)

@@ -133,8 +133,19 @@ def verdict_line(report: dict, *, unit: str = "mm") -> str:
         return (f"result: deviation NOT verified (not measured): a valid result with a face for every part and its "
                 f"volume within the limit, but how far it lies from the mesh is unknown ({tol})")
     solid = "a valid shell (the mesh is open)" if report["mesh"].get("open") else "a valid closed solid"
-    return (f"result: within tolerance ({tol}): {solid} as written, a face for every part, deviation both ways "
-            f"and volume within their limits")
+    return (f"result: within tolerance ({tol}{_between_vertices(report, unit)}): {solid} as written, a face for every "
+            f"part, deviation both ways and volume within their limits")
+
+
+def _between_vertices(report: dict, unit: str) -> str:
+    """What the tolerance holds between the mesh's vertices, where a coarse mesh's chord sag exceeds it: the faces are
+    pinned there only to T + sag (the shape→mesh p95 limit), which is all a user may read of the true part."""
+    rule = next((r for r in report["verdict"]["rules"] if r["rule"] == "shape_to_mesh_p95"), None)
+    T = float(report["tolerance"])
+    if rule is None or not isinstance(rule["limit"], (int, float)) or not rule["limit"] > T:
+        return ""
+    return (f" at the mesh's vertices, {length(rule['limit'], unit)} between them: the mesh's chord sag "
+            f"{length(rule['limit'] - T, unit)} is all it tells of the surface there")
 
 
 def _rule_words(rule: dict, unit: str) -> str:

@@ -181,7 +181,7 @@ def _surface_models(network: CurveNetwork, surfaces: Mapping) -> dict[int, Surfa
         except (KeyError, IndexError) as err:
             raise InputError(f"build_solid: `surfaces` has no surface for part {p}") from err
         try:
-            models[p] = surface_model(s).reframed(network.part_samples(p)[0])
+            models[p] = surface_model(s).reframed(network.part_samples(p)[0], _rim(network, p))
         except Exception as err:  # noqa: BLE001  (ReconError, or OCC refusing the parameters)
             if not hasattr(s, "params"):
                 raise  # not a fit: the caller passed something else (misuse)
@@ -190,6 +190,11 @@ def _surface_models(network: CurveNetwork, surfaces: Mapping) -> dict[int, Surfa
             log.info("part %d: no surface from its fit (%s: %s)", p, type(err).__name__, err)
             models[p] = None
     return models
+
+
+def _rim(network: CurveNetwork, part: int) -> list[np.ndarray]:
+    """The polylines of the edges of the part's loops."""
+    return [network.polyline(abs(int(ref)) - 1) for j in network.part_loops(part) for ref in network.loop(j)]
 
 
 def _fit_ok(surfaces: Mapping, models: Mapping, part: int) -> bool:

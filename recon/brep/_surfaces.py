@@ -67,6 +67,25 @@ def _perp(d) -> np.ndarray:
     return _unit(np.cross(d, x_or_y_helper(d)))
 
 
+def _spread(rel: np.ndarray, m: np.ndarray) -> float:
+    """The largest angle between the unit direction ``m`` and the directions of ``rel`` (k, 3)."""
+    d = rel / np.maximum(np.linalg.norm(rel, axis=1), 1e-300)[:, None]
+    return float(np.arccos(np.clip(d @ m, -1.0, 1.0)).max())
+
+
+def _step(rim: list | None) -> float:
+    """The largest angle between consecutive points of the rim's polylines (directions from the centre): how far the
+    true edge may run past a polyline between them. Without a rim, a sixth of a turn: a cap drawn as a hexagon."""
+    if not rim:
+        return np.pi / 6
+    out = 0.0
+    for r in rim:
+        d = r / np.maximum(np.linalg.norm(r, axis=1), 1e-300)[:, None]
+        if len(d) > 1:
+            out = max(out, float(np.arccos(np.clip(np.einsum("ij,ij->i", d[1:], d[:-1]), -1.0, 1.0)).max()))
+    return out
+
+
 def _ax3(origin, axis, xdir=None) -> gp_Ax3:
     axis = _unit(axis)
     xdir = _perp(axis) if xdir is None else _unit(np.asarray(xdir) - (np.asarray(xdir) @ axis) * axis)
@@ -112,25 +131,31 @@ class SurfaceModel:
             return self.surface.project(points)
         return project_occ(self.geom, np.atleast_2d(np.asarray(points, dtype=np.float64)), memo=self._memo)
 
-    def reframed(self, points) -> "SurfaceModel":
-        """The same surface with its seam (and a sphere's poles) turned away from ``points (k, 3)``.
+    def reframed(self, points, rim: list | None = None) -> "SurfaceModel":
+        """The same surface with its seam (and a sphere's poles) turned away from ``points (k, 3)`` (the face's
+        samples) and ``rim``: the polylines (j, 3) of its boundary's edges, where known.
 
         A face across a seam gets its edges split by ShapeFix, and a face over a sphere's pole gets a
         singular parametrisation (degenerate triangles in the STL); rotating the parametrisation about
         the surface's own axis (or choosing the sphere's axis) avoids both without changing the geometry.
+        A sphere face reaching 90° from its centre (a hemisphere), or within one step of its rim's polyline of it,
+        would have a pole on its rim: it gets the pole at its centre instead, as OpenCascade's own caps.
         """
         pts = np.atleast_2d(np.asarray(points, dtype=np.float64))
         s = self.surface
         if len(pts) == 0 or not isinstance(s, (Cylinder, Cone, Sphere, Torus)):
             return self
-        rel = pts - self.origin
+        rel = np.concatenate([pts, *rim]) - self.origin if rim else pts - self.origin
         if isinstance(s, Sphere):
             m = rel.mean(axis=0)
             if np.linalg.norm(m) < 1e-12:
                 return self
             m = _unit(m)
-            axis = _perp(m)
-            geom = Geom_SphericalSurface(_ax3(s.center, axis, -m), s.radius)
+            if np.pi / 2 - _spread(rel, m) > _step([r - self.origin for r in rim] if rim else None):
+                # the poles stay off the face and its rim: its centre on the equator
+                geom = Geom_SphericalSurface(_ax3(s.center, _perp(m), -m), s.radius)
+            else:  # a pole could reach the face or its rim (a hemisphere's): the pole at its centre, as OCC's caps
+                geom = Geom_SphericalSurface(_ax3(s.center, m), s.radius)
         else:
             d = self.axis
             radial = rel - np.outer(rel @ d, d)

@@ -27,6 +27,7 @@ from ._context import own_normals
 from ._exact_crease import creased_note
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
+from ._exact_gate import coplanar_pairs, exact_tessellation, tri_planes
 from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
@@ -57,12 +58,6 @@ FITTERS = {"plane": fit_plane, "sphere": fit_sphere, "cylinder": fit_cylinder, "
 #: a CAD export uses (0.8 rad), below the turn of a crease between faces (a right angle, a hexagon's 60°).
 CREASE_RAD = 1.0
 COS_CREASE = float(np.cos(CREASE_RAD))
-#: On a CAD tessellation every plane and every quad of a cylinder's strip is a coplanar pair of triangles, a share
-#: of a few tenths of the pairs; noise leaves coplanar pairs only by chance (a few in a thousand).
-FLAT_SHARE = 0.02
-#: A CAD tessellation draws a plane by its boundary: at most this share of its planes' vertices are inside them
-#: (a remesher or a scan puts most of a plane's vertices inside).
-INNER_SHARE = 0.02
 
 
 @dataclass
@@ -81,12 +76,6 @@ def roundoff(vertices: np.ndarray) -> float:
     return ROUNDOFF * max(float(np.abs(vertices).max()), diag)
 
 
-def _tri_planes(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    return n, np.einsum("ij,ij->i", n, V[F[:, 0]])
-
-
 def _plane_of(P: np.ndarray) -> tuple[np.ndarray, float]:
     c = P.mean(axis=0)
     _, _, vt = np.linalg.svd(P - c, full_matrices=False)
@@ -101,7 +90,7 @@ def plane_atoms(mesh: Mesh, eps: float) -> np.ndarray:
     plane tilts; the set's does not)."""
     V, F = mesh.vertices, mesh.faces
     m = len(F)
-    nrm, off = _tri_planes(V, F)
+    nrm, off = tri_planes(V, F)
     pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
     adj = sp.coo_matrix((np.ones(2 * len(pairs)), (np.r_[pairs[:, 0], pairs[:, 1]], np.r_[pairs[:, 1], pairs[:, 0]])),
                         shape=(m, m)).tocsr()
@@ -126,43 +115,6 @@ def plane_atoms(mesh: Mesh, eps: float) -> np.ndarray:
                 refit_at *= 2
         k += 1
     return labels
-
-
-def coplanar_pairs(mesh: Mesh, eps: float) -> np.ndarray:
-    """(e,) bool over ``mesh.face_adjacency``: the two triangles lie in one plane (each one's far vertex within
-    ``eps`` of the other's plane)."""
-    V, F = mesh.vertices, mesh.faces
-    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
-    nrm, off = _tri_planes(V, F)
-    ok = np.ones(len(pairs), bool)
-    for x, y in ((0, 1), (1, 0)):
-        far = np.abs(np.einsum("ijk,ik->ij", V[F[pairs[:, y]]], nrm[pairs[:, x]]) - off[pairs[:, x], None])
-        ok &= far.max(axis=1) <= eps
-    return ok
-
-
-def exact_tessellation(mesh: Mesh, eps: float) -> bool:
-    """Whether the mesh is a CAD tessellation with exact vertices: at least :data:`FLAT_SHARE` of its triangle pairs
-    lie in one plane to round-off ``eps``, and its planes are drawn by their boundaries — at most
-    :data:`INNER_SHARE` of the vertices of coplanar triangles are inside a plane (every pair around them coplanar).
-    A scan's noise leaves no coplanar pairs; a remesher's planes have most of their vertices inside."""
-    pairs = np.asarray(mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
-    if len(pairs) == 0:
-        return False
-    flat = coplanar_pairs(mesh, eps)
-    if flat.mean() < FLAT_SHARE:
-        return False
-    # a vertex is inside a plane when every edge around it joins two coplanar triangles
-    edges = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
-    n = len(mesh.vertices)
-    crease = np.zeros(n, bool)
-    crease[edges[~flat].ravel()] = True
-    on = np.zeros(n, bool)
-    on[edges[flat].ravel()] = True
-    rim = np.asarray(mesh.edge_face_count) != 2  # an open mesh's rim is no plane's inside
-    crease[np.asarray(mesh.edges_unique)[rim].ravel()] = True
-    inner = on & ~crease
-    return bool(inner.sum() <= INNER_SHARE * on.sum())
 
 
 @dataclass
