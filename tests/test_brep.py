@@ -924,6 +924,28 @@ def test_a_solid_occ_cannot_orient_is_left_a_shell(monkeypatch):
     assert any("OrientClosedSolid failed" in w for w in warnings)
 
 
+def test_a_shell_occ_cannot_fix_is_kept_as_built(monkeypatch):
+    """ShapeFix_Shell.Perform threw StdFail_NotDone on export seed 149's shell: the run ended as an internal error
+    (exit 3) and wrote nothing. The shell as built goes on to the solid (a box's six faces: a valid solid still)."""
+    from build123d import Box
+    from OCP.TopAbs import TopAbs_SOLID
+
+    import recon.brep._shell as shell_mod
+
+    class _Throws:
+        def __init__(self, shell):
+            self.FixFaceMode = 0
+
+        def Perform(self):
+            raise RuntimeError("BRep_API: command not done")
+
+    monkeypatch.setattr(shell_mod, "ShapeFix_Shell", _Throws)
+    warnings: list[str] = []
+    shape = shell_mod.assemble([f.wrapped for f in Box(1, 2, 3).faces()], 1e-4, False, warnings)
+    assert shape.ShapeType() == TopAbs_SOLID
+    assert any("the shell as built" in w for w in warnings)
+
+
 def test_a_shape_occ_cannot_weigh_is_reported_without_volume(monkeypatch):
     """Export seed 137's read-back shell made ``BRepGProp.VolumeProperties`` raise Standard_ConstructionError, which
     ended the run as an internal error (exit 3) after the file was written: a shape without a volume is not a solid."""

@@ -64,12 +64,18 @@ def assemble(faces, tolerance, open_mesh, warnings):
     # leaves.
     face_mode = -1 if sewn_shell else 0  # -1: its default
     fixed = _shell_fixed(shell, face_mode)
+    if fixed is None and face_mode:  # mending the faces failed in OCC: orienting them may not
+        warnings.append("mending the sewn faces failed (OpenCascade: command not done): the sewn faces only oriented")
+        face_mode, fixed = 0, _shell_fixed(shell, 0)
+    if fixed is None:  # the shell as built: the verdict judges what it holds
+        warnings.append("orienting the shell's faces failed (OpenCascade: command not done): the shell as built")
+        fixed = shell
     if face_mode:
         # ShapeFix_Face makes degenerate an edge whose vertex lies within its (sewing-widened) tolerance of a
         # narrow side of its surface: a shared edge lost splits the shell in two, a face bounded by it alone has no
         # area left (no STEP file holds it). The sewn faces only oriented are kept when they stay whole.
         oriented = _shell_fixed(shell, 0)
-        if _pieces(fixed) > _pieces(oriented):
+        if oriented is not None and _pieces(fixed) > _pieces(oriented):
             warnings.append("mending the sewn faces split the shell or left a face with no area: the sewn faces "
                             "only oriented")
             face_mode, fixed = 0, oriented
@@ -128,10 +134,13 @@ def assemble(faces, tolerance, open_mesh, warnings):
 
 def _shell_fixed(shell, face_mode: int):
     """``ShapeFix_Shell`` on ``shell`` (its faces oriented alike, split by connection), with ``FixFaceMode``
-    ``face_mode``: -1 mends every face too (ShapeFix_Face), 0 orients only."""
+    ``face_mode``: -1 mends every face too (ShapeFix_Face), 0 orients only; None when OpenCascade fails."""
     fix = ShapeFix_Shell(shell)
     fix.FixFaceMode = face_mode
-    fix.Perform()
+    try:
+        fix.Perform()
+    except Exception:  # noqa: BLE001  (OCC raises Standard_Failure subclasses: StdFail_NotDone on seed 149)
+        return None
     return fix.Shape()
 
 
