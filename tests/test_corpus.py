@@ -261,3 +261,28 @@ def test_a_cone_split_in_halves_on_one_surface_counts_once_in_the_joined_truth(t
     s = summary(load_rows(tmp_path))["export"]
     assert (s["exact faces"], s["exact faces, same-surface faces joined"]) == (0.0, 0.5)
     assert s["exit 0 with a wrong face count (joined)"] == 1
+
+
+def test_off_part_is_the_distance_to_the_trimmed_faces():
+    """A plate with a through hole of radius 2: points on its faces are on the part; a point on the top face's plane
+    at the hole's centre (where a membrane over the hole would put it) is the radius away, at the hole's wall."""
+    from build123d import Box, Cylinder
+
+    plate = Box(20, 20, 5) - Cylinder(2, 5)
+    on = np.array([[5.0, 5.0, 2.5], [-7.0, 3.0, -2.5], [10.0, 0.0, 1.0], [2.0, 0.0, 0.0], [0.0, -2.0, 1.5]])
+    assert regimes.off_part(plate, on) == pytest.approx(0.0, abs=1e-7)
+    assert regimes.off_part(plate, np.array([[0.0, 0.0, 2.5]])) == pytest.approx(2.0, abs=1e-7)
+    assert regimes.off_part(plate, np.array([[1.0, 0.0, 2.5], [0.0, 0.0, 0.0]])) == pytest.approx(2.0, abs=1e-7)
+
+
+def test_a_mesh_off_its_part_is_not_a_case(monkeypatch):
+    """A remeshed mesh with a vertex farther than OFF_PART_EDGES of its edges from the part is refused (scan10 seed 0:
+    a membrane over five bolt holes, bench/scan.md "s39-rim"); within it, the mesh is made."""
+    from build123d import Box
+
+    box = Box(10, 10, 10)
+    v, t, _, _, h, _ = regimes._dense(box, 2000, (1000, 8000))
+    assert regimes.off_part(box, v) <= regimes.OFF_PART_EDGES * h  # every vertex projected onto its face
+    monkeypatch.setattr(regimes, "off_part", lambda solid, vertices: 1.01 * regimes.OFF_PART_EDGES * h)
+    with pytest.raises(regimes.MeshNotPart):
+        regimes._dense(box, 2000, (1000, 8000))
