@@ -82,6 +82,24 @@ def read_part(step: Path):
     return solids[0]
 
 
+def materialise_apart(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
+    """:func:`materialise`, with the making (when the case is not cached) in a spawned process.
+
+    Building a part (its booleans) and checking its mesh (:func:`bench.corpus.regimes.off_part`) start OpenCascade's
+    thread pool, and a child forked later from a process holding that pool deadlocks when it meshes: the corpus
+    measures in a forked child, which sat idle to its 400 s limit on every case made in the same worker (bench/scan.md
+    "s39-rim"). Reading a cached case starts no pool."""
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    ext = ".obj" if regime == "export-obj" else ".stl"
+    folder = Path(cache) / regime
+    if not ((folder / f"{_stem(seed)}{ext}").exists() and (folder / f"{_stem(seed)}.json").exists()):
+        with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as pool:
+            pool.submit(materialise, seed, regime, Path(cache)).result()  # a generator error is raised here
+    return materialise(seed, regime, cache)
+
+
 def materialise(seed: int, regime: str, cache: Path = DEFAULT_CACHE) -> Truth:
     """The true STEP and the mesh of ``seed`` in ``regime`` on disk (made once, then read from ``cache``)."""
     import trimesh
