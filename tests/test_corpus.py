@@ -276,3 +276,28 @@ def test_what_recon_states_between_the_vertices_is_t_plus_the_chord_sag_where_la
     assert _stated(report(0.01)) == 0.01
     assert _stated(report(None)) == 0.01  # not measured: the tolerance alone
     assert _stated({"tolerance": 0.01}) == 0.01
+
+
+def test_off_part_is_the_distance_to_the_trimmed_faces():
+    """A plate with a through hole of radius 2: points on its faces are on the part; a point on the top face's plane
+    at the hole's centre (where a membrane over the hole would put it) is the radius away, at the hole's wall."""
+    from build123d import Box, Cylinder
+
+    plate = Box(20, 20, 5) - Cylinder(2, 5)
+    on = np.array([[5.0, 5.0, 2.5], [-7.0, 3.0, -2.5], [10.0, 0.0, 1.0], [2.0, 0.0, 0.0], [0.0, -2.0, 1.5]])
+    assert regimes.off_part(plate, on) == pytest.approx(0.0, abs=1e-7)
+    assert regimes.off_part(plate, np.array([[0.0, 0.0, 2.5]])) == pytest.approx(2.0, abs=1e-7)
+    assert regimes.off_part(plate, np.array([[1.0, 0.0, 2.5], [0.0, 0.0, 0.0]])) == pytest.approx(2.0, abs=1e-7)
+
+
+def test_a_mesh_off_its_part_is_not_a_case(monkeypatch):
+    """A remeshed mesh with a vertex farther than OFF_PART_EDGES of its edges from the part is refused (scan10 seed 0:
+    a membrane over five bolt holes, bench/scan.md "s39-rim"); within it, the mesh is made."""
+    from build123d import Box
+
+    box = Box(10, 10, 10)
+    v, t, _, _, h, _ = regimes._dense(box, 2000, (1000, 8000))
+    assert regimes.off_part(box, v) <= regimes.OFF_PART_EDGES * h  # every vertex projected onto its face
+    monkeypatch.setattr(regimes, "off_part", lambda solid, vertices: 1.01 * regimes.OFF_PART_EDGES * h)
+    with pytest.raises(regimes.MeshNotPart):
+        regimes._dense(box, 2000, (1000, 8000))
