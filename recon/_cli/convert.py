@@ -138,12 +138,12 @@ def verdict_line(report: dict, *, unit: str = "mm") -> str:
 
 
 def _between_vertices(report: dict, unit: str) -> str:
-    """What the tolerance holds between the mesh's vertices, where a coarse mesh's chord sag exceeds it: the faces are
+    """What the tolerance holds between the mesh's vertices, where a coarse mesh's chord sag exceeds T: the faces are
     pinned there only to T + sag (the shape→mesh p95 limit), which is all a user may read of the true part."""
     rule = next((r for r in report["verdict"]["rules"] if r["rule"] == "shape_to_mesh_p95"), None)
     T = float(report["tolerance"])
-    if rule is None or not isinstance(rule["limit"], (int, float)) or not rule["limit"] > T:
-        return ""
+    if rule is None or not isinstance(rule["limit"], (int, float)) or not rule["limit"] - T > T:
+        return ""  # (as the verdict's own detail: only a sag above T changes what T means)
     return (f" at the mesh's vertices, {length(rule['limit'], unit)} between them: the mesh's chord sag "
             f"{length(rule['limit'] - T, unit)} is all it tells of the surface there")
 
