@@ -34,6 +34,7 @@ from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
+from ._exact_turn import drawn_alike, largest_turn
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
            "roundoff"]
@@ -184,15 +185,19 @@ def _floor(eps: Tol) -> float:
 
 
 def _fits_exactly(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: Tol,
-                  sag: float) -> bool:
+                  sag: float, turn: float | None = None) -> bool:
     """Whether ``fit`` holds the vertices ``ids`` within ``eps`` (each its own) and passes within ``sag`` of the
-    triangles."""
+    triangles, or, given the ``turn`` of a face ``fit`` is proven on, turns across them no more than across it
+    (:mod:`._exact_turn`)."""
     if not fit.ok or fit.type == "bspline":
         return False
     limit = eps if np.ndim(eps) == 0 else eps[ids]
     if not bool(np.all(np.abs(fit.distance(V[ids])) <= limit)):
         return False
-    return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris))))) <= sag
+    if float(np.max(np.abs(fit.distance(_chord_points(V, F, tris))))) <= sag:
+        return True
+    corner_eps = np.full(len(tris), float(eps)) if np.ndim(eps) == 0 else np.asarray(eps)[F[tris]].max(axis=1)
+    return turn is not None and drawn_alike(fit, V, F, tris, turn, corner_eps)
 
 
 def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float, *,
@@ -420,6 +425,8 @@ def reclaim(at: _Atoms, regions: list, eps: Tol, sag: float) -> list[tuple[list,
         if len(members[i]) < 2:
             continue
         fit = regions[i][1]
+        # the step its proven triangles are drawn at: a neighbour drawn at it is the same surface (:mod:`._exact_turn`)
+        turn = largest_turn(fit, V, F, np.concatenate([at.tris[a] for a in members[i]]))
         front = [n for a in members[i] for n in at.nbrs[a]]
         seen: set = set()
         while front:
@@ -435,7 +442,7 @@ def reclaim(at: _Atoms, regions: list, eps: Tol, sag: float) -> list[tuple[list,
             # crease's angle while its vertices and chords lie on the surface to round-off
             if not any(at.smooth(a, b) for b in at.nbrs[a] if owner[b] == i):
                 continue
-            if not _fits_exactly(fit, V, F, at.verts[a], at.tris[a], eps, sag):
+            if not _fits_exactly(fit, V, F, at.verts[a], at.tris[a], eps, sag, turn):
                 continue
             if o >= 0:
                 members[o].remove(a)
@@ -600,7 +607,8 @@ def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list, tally: list[int
     # them; the joined face then reclaims the 2-triangle planes between its bands, which may join more (seed 35)
     for _ in range(MERGE_ROUNDS):
         merged = merge_curved(at, curved, lambda ids, tris: _union_fit(at, ids, tris, eps, sag),
-                              lambda fit, ids, tris: _fits_exactly(fit, V, F, ids, tris, eps, sag))
+                              lambda fit, ids, tris, own: _fits_exactly(fit, V, F, ids, tris, eps, sag,
+                                                                        largest_turn(fit, V, F, own)))
         if len(merged) == len(curved):
             break
         curved = reclaim(at, merged, eps, sag)

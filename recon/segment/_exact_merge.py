@@ -29,10 +29,10 @@ def _neighbours(at: Any, members: list, owner: np.ndarray, i: int) -> list:
 
 
 def merge_curved(at: Any, regions: list, fit_union: Callable[[np.ndarray, np.ndarray], Any],
-                 holds: Callable[[Any, np.ndarray, np.ndarray], bool]) -> list:
+                 holds: Callable[[Any, np.ndarray, np.ndarray, np.ndarray], bool]) -> list:
     """The curved regions ``(atoms, fit)`` after each, largest first (then by first atom), took in every neighbouring
-    region such that a surface holds both: the region's own surface when ``holds(fit, ids, tris)`` of the neighbour
-    (one surface drawn twice), else ``fit_union(ids, tris)`` of their union (a surface or None). A union that failed is
+    region such that a surface holds both: the region's own surface when ``holds(fit, ids, tris, own)`` of the
+    neighbour, ``own`` the region's triangles (one surface drawn twice), else ``fit_union(ids, tris)`` of their union (a surface or None). A union that failed is
     not tried again: no surface holds a set that holds a part it failed on."""
     members = [list(r) for r, _ in regions]
     fits = [f for _, f in regions]
@@ -52,7 +52,7 @@ def merge_curved(at: Any, regions: list, fit_union: Callable[[np.ndarray, np.nda
                 if (min(i, j), max(i, j)) in failed:
                     continue
                 ids_j, tris_j = at.points(members[j])
-                if holds(fits[i], ids_j, tris_j):
+                if holds(fits[i], ids_j, tris_j, at.points(members[i])[1]):
                     fit = fits[i]
                 else:
                     ids, tris = at.points(members[i] + members[j])
