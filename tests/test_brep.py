@@ -904,22 +904,28 @@ def test_filling_surface_keeps_its_control_net_near_the_face():
     assert np.linalg.norm(poles.max(0) - poles.min(0)) <= 3 * math.dist((x0, y0, z0), (x1, y1, z1))
 
 
+def _box_assembled_with(monkeypatch, name: str, fake):
+    """``assemble`` of a box's six faces with ``recon.brep._shell.<name>`` replaced by ``fake``: (shape, warnings)."""
+    from build123d import Box
+
+    import recon.brep._shell as shell_mod
+
+    monkeypatch.setattr(shell_mod, name, fake)
+    warnings: list[str] = []
+    return shell_mod.assemble([f.wrapped for f in Box(1, 2, 3).faces()], 1e-4, False, warnings), warnings
+
+
 def test_a_solid_occ_cannot_orient_is_left_a_shell(monkeypatch):
     """OrientClosedSolid throws on degenerate faces (export seed 13: gp_Vec2d::Normalize): a shell and a warning, not
     an internal error that loses the whole result."""
-    from build123d import Box
     from OCP.TopAbs import TopAbs_SHELL
-
-    import recon.brep._shell as shell_mod
 
     class _Throws:
         @staticmethod
         def OrientClosedSolid_s(solid):
             raise RuntimeError("gp_Vec2d::Normalize() - vector has zero norm")
 
-    monkeypatch.setattr(shell_mod, "BRepLib", _Throws)
-    warnings: list[str] = []
-    shape = shell_mod.assemble([f.wrapped for f in Box(1, 2, 3).faces()], 1e-4, False, warnings)
+    shape, warnings = _box_assembled_with(monkeypatch, "BRepLib", _Throws)
     assert shape.ShapeType() == TopAbs_SHELL
     assert any("OrientClosedSolid failed" in w for w in warnings)
 
@@ -927,10 +933,7 @@ def test_a_solid_occ_cannot_orient_is_left_a_shell(monkeypatch):
 def test_a_shell_occ_cannot_fix_is_kept_as_built(monkeypatch):
     """ShapeFix_Shell.Perform threw StdFail_NotDone on export seed 149's shell: the run ended as an internal error
     (exit 3) and wrote nothing. The shell as built goes on to the solid (a box's six faces: a valid solid still)."""
-    from build123d import Box
     from OCP.TopAbs import TopAbs_SOLID
-
-    import recon.brep._shell as shell_mod
 
     class _Throws:
         def __init__(self, shell):
@@ -939,9 +942,7 @@ def test_a_shell_occ_cannot_fix_is_kept_as_built(monkeypatch):
         def Perform(self):
             raise RuntimeError("BRep_API: command not done")
 
-    monkeypatch.setattr(shell_mod, "ShapeFix_Shell", _Throws)
-    warnings: list[str] = []
-    shape = shell_mod.assemble([f.wrapped for f in Box(1, 2, 3).faces()], 1e-4, False, warnings)
+    shape, warnings = _box_assembled_with(monkeypatch, "ShapeFix_Shell", _Throws)
     assert shape.ShapeType() == TopAbs_SOLID
     assert any("the shell as built" in w for w in warnings)
 
