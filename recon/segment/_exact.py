@@ -32,6 +32,7 @@ from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
+from ._exact_rings import flat_rings, three_ring_tori
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 from ._exact_turn import drawn_alike, largest_turn
@@ -704,10 +705,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "") or creased_note(
         V, F, mesh.face_normals, pairs, labels, [fits[p].type for p in range(len(fits))],
         lambda tris: _bspline_through(V, F, tris, tolerance))
+    # two bands a torus holds whatever they are: one face or two, and the torus off both between the rings
+    why = why or three_ring_tori(V, F, labels, fits, eps)
     if why:
         log.info("exact: %s", why)
         return None
-    return ExactFaces(labels, fits, notes + kinks)
+    # a flat ring on a torus to round-off: the surface is right either way, only the count is open
+    flat = flat_rings(V, F, labels, fits, atoms, eps)
+    return ExactFaces(labels, fits, notes + kinks + ([flat] if flat else []))
 
 
 def _relabelled(labels: np.ndarray, fits: dict, whole: list) -> tuple[np.ndarray, dict]:

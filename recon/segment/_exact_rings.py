@@ -1,0 +1,82 @@
+"""Tori on three vertex rings: a face count the vertices do not prove.
+
+A torus's meridian is a circle (three parameters: its centre's height and distance from the axis, its radius), and any
+three points lie on one circle. So the vertices of two bands that share a ring — three rings about one axis — always
+lie on some torus, whatever the bands are: a cylinder's wall and the 45° chamfer beside it as well as
+a fillet drawn as two bands. The mesh shows one face or two equally; four rings prove the meridian circle. A torus with
+two rings is one band, a face either way.
+
+Likewise a flat ring beside a torus's top: two points of the meridian circle at one height are mirrored across its
+top (their radii average to the major radius R); a plane atom at one height whose radii do not average to R lies on the
+torus only through round-off (a ring narrower than √(2 r eps) tangent to it), one face or two. Measured: bench/exact.md, "s39-wrong".
+
+numpy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["RING_SPREAD", "flat_rings", "three_ring_tori"]
+
+#: Vertices of one ring agree in height and radius about the torus's axis to their round-off, and the fitted axis
+#: holding them all within eps moves them by a few more; rings of a drawn face lie a chord apart (≫ eps).
+RING_SPREAD = 10.0
+
+
+def rings(V: np.ndarray, center: np.ndarray, axis: np.ndarray, spread: float) -> int:
+    """The number of rings the points ``V`` form about the axis through ``center`` along ``axis``: points whose
+    (height, radius) lie within ``spread`` of each other, chained."""
+    w = V - center
+    h = w @ axis
+    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+    hr = np.c_[h, rho]
+    seen = np.zeros(len(hr), bool)
+    count = 0
+    for i in range(len(hr)):
+        if seen[i]:
+            continue
+        count += 1
+        stack = [i]
+        seen[i] = True
+        while stack:
+            j = stack.pop()
+            near = np.flatnonzero(~seen & (np.hypot(*(hr - hr[j]).T) <= spread))
+            seen[near] = True
+            stack.extend(near.tolist())
+    return count
+
+
+def three_ring_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float) -> str:
+    """A note when some torus face's vertices lie on exactly three rings about its axis (two bands: the face count
+    is not proven, module doc); "" otherwise."""
+    found = [p for p, f in fits.items() if f.type == "torus" and rings(
+        V[np.unique(F[labels == p])], np.asarray(f.params["center"], float), np.asarray(f.params["axis_dir"], float),
+        RING_SPREAD * eps) == 3]
+    if not found:
+        return ""
+    return (f"face count not proven: {len(found)} torus face(s) on three vertex rings (two bands: any three circles "
+            f"about one axis lie on a torus, so they are one face or two)")
+
+
+def flat_rings(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, atoms: np.ndarray, eps: float) -> str:
+    """A note when a torus face holds a whole plane atom (``atoms``: the plane atom of each triangle) at one height
+    about its axis whose radii do not average to the major radius (module doc); "" otherwise."""
+    found = 0
+    for p, f in fits.items():
+        if f.type != "torus":
+            continue
+        c, a = np.asarray(f.params["center"], float), np.asarray(f.params["axis_dir"], float)
+        for q in np.unique(atoms[labels == p]):
+            tris = np.flatnonzero(atoms == q)
+            if not (labels[tris] == p).all():
+                continue
+            w = V[np.unique(F[tris])] - c
+            h = w @ a
+            rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+            # one height to the vertices' round-off (each within eps); mirrored radii to theirs too
+            found += bool(np.ptp(h) <= 2 * eps and abs(rho.min() + rho.max() - 2 * f.params["major_radius"]) > 2 * eps)
+    if not found:
+        return ""
+    return (f"face count not proven: {found} flat ring(s) a torus holds only to round-off (a plane tangent to it "
+            f"at its top: one face or two)")
