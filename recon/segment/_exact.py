@@ -706,7 +706,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         V, F, mesh.face_normals, pairs, labels, [fits[p].type for p in range(len(fits))],
         lambda tris: _bspline_through(V, F, tris, tolerance))
     # two bands a torus holds whatever they are: one face or two, and the torus off both between the rings
-    why = why or three_ring_tori(V, F, labels, fits, eps)
+    why = why or three_ring_tori(V, F, labels, fits, eps, pairs, np.asarray(mesh.face_adjacency_edges).reshape(-1, 2))
     if why:
         log.info("exact: %s", why)
         return None

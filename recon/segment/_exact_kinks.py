@@ -17,10 +17,10 @@ import numpy as np
 
 from ..fit import surface_normals
 
-__all__ = ["kinks"]
+__all__ = ["kinks", "shortest_height"]
 
 
-def _height(P: np.ndarray) -> float:
+def shortest_height(P: np.ndarray) -> float:
     """A triangle's shortest height: the lever its vertices' round-off tilts its normal by."""
     return float(np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0])) / np.linalg.norm(P - P[[1, 2, 0]], axis=1).max())
 
@@ -50,7 +50,7 @@ def kinks(mesh: Any, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: flo
             if not small_plane[p] or fits[c].type not in curved:
                 continue
             turn = np.arccos(np.clip(np.abs(surface_normals(fits[c], V[e]) @ n[tri]), 0.0, 1.0)).max()
-            bound = 2 * eps / _height(V[F[tri]])
+            bound = 2 * eps / shortest_height(V[F[tri]])
             if loose[c]:
                 reach = np.linalg.norm(V[np.unique(F[labels == c])] - V[e].mean(axis=0), axis=1).max()
                 bound = max(bound, 2 * tol / reach)

@@ -4,7 +4,8 @@ A torus's meridian is a circle (three parameters: its centre's height and distan
 three points lie on one circle. So the vertices of two bands that share a ring — three rings about one axis — always
 lie on some torus, whatever the bands are: a cylinder's wall and the 45° chamfer beside it as well as
 a fillet drawn as two bands. The mesh shows one face or two equally; four rings prove the meridian circle. A torus with
-two rings is one band, a face either way.
+two rings is one band, a face either way. A three-ring torus tangent to every neighbour is a fillet drawn as two bands
+(a wall and its chamfer meet theirs at creases): that one is the face.
 
 Likewise a flat ring beside a torus's top: two points of the meridian circle at one height are mirrored across its
 top (their radii average to the major radius R); a plane atom at one height whose radii do not average to R lies on the
@@ -16,6 +17,9 @@ numpy only.
 from __future__ import annotations
 
 import numpy as np
+
+from ..fit import surface_normals
+from ._exact_kinks import shortest_height
 
 __all__ = ["RING_SPREAD", "flat_rings", "three_ring_tori"]
 
@@ -47,16 +51,38 @@ def rings(V: np.ndarray, center: np.ndarray, axis: np.ndarray, spread: float) ->
     return count
 
 
-def three_ring_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float) -> str:
+def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends: np.ndarray, labels: np.ndarray,
+                           fits: dict, p: int, eps: float) -> bool:
+    """Whether face ``p`` meets every other face along its edges tangentially: the two fitted surfaces' normals at
+    each shared edge's ends agree within their round-off tilts (2 eps over the shortest height of the triangle on
+    each side). A fillet drawn as two bands does; a wall and its chamfer on three rings meet their neighbours at
+    creases (export seeds 114 against 169, bench/exact.md "s39-wrong")."""
+    la, lb = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    on = ((la == p) | (lb == p)) & (la != lb)
+    if not on.any():
+        return False
+    for (t, u), e in zip(pairs[on], ends[on]):
+        if labels[t] != p:
+            t, u = u, t
+        turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[p], V[e]),
+                                                  surface_normals(fits[int(labels[u])], V[e]))), 0.0, 1.0)).max()
+        if turn > 2 * eps / shortest_height(V[F[t]]) + 2 * eps / shortest_height(V[F[u]]):
+            return False
+    return True
+
+
+def three_ring_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float, pairs: np.ndarray,
+                    ends: np.ndarray) -> str:
     """A note when some torus face's vertices lie on exactly three rings about its axis (two bands: the face count
-    is not proven, module doc); "" otherwise."""
+    is not proven, module doc) and it meets a neighbour at a crease; "" otherwise. ``pairs``, ``ends``: the mesh's
+    adjacent triangles and their shared edges' vertices."""
     found = [p for p, f in fits.items() if f.type == "torus" and rings(
         V[np.unique(F[labels == p])], np.asarray(f.params["center"], float), np.asarray(f.params["axis_dir"], float),
-        RING_SPREAD * eps) == 3]
+        RING_SPREAD * eps) == 3 and not _tangent_to_neighbours(V, F, pairs, ends, labels, fits, p, eps)]
     if not found:
         return ""
-    return (f"face count not proven: {len(found)} torus face(s) on three vertex rings (two bands: any three circles "
-            f"about one axis lie on a torus, so they are one face or two)")
+    return (f"face count not proven: {len(found)} torus face(s) on three vertex rings meeting a neighbour at a crease "
+            f"(two bands: any three circles about one axis lie on a torus, so they are one face or two)")
 
 
 def flat_rings(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, atoms: np.ndarray, eps: float) -> str:
