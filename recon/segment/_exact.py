@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
-from functools import partial
-from typing import Union
+from functools import cache, partial
+from typing import Callable, Union
 
 import numpy as np
 import scipy.sparse as sp
@@ -186,10 +186,10 @@ def _floor(eps: Tol) -> float:
 
 
 def _fits_exactly(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: Tol,
-                  sag: float, turn: float | None = None) -> bool:
+                  sag: float, turn: Callable[[], float] | None = None) -> bool:
     """Whether ``fit`` holds the vertices ``ids`` within ``eps`` (each its own) and passes within ``sag`` of the
-    triangles, or, given the ``turn`` of a face ``fit`` is proven on, turns across them no more than across it
-    (:mod:`._exact_turn`)."""
+    triangles, or, given ``turn()`` of a face ``fit`` is proven on, turns across them no more than across it
+    (:mod:`._exact_turn`; asked only when the sag test fails)."""
     if not fit.ok or fit.type == "bspline":
         return False
     limit = eps if np.ndim(eps) == 0 else eps[ids]
@@ -197,8 +197,10 @@ def _fits_exactly(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, ids: np.ndarray
         return False
     if float(np.max(np.abs(fit.distance(_chord_points(V, F, tris))))) <= sag:
         return True
+    if turn is None:
+        return False
     corner_eps = np.full(len(tris), float(eps)) if np.ndim(eps) == 0 else np.asarray(eps)[F[tris]].max(axis=1)
-    return turn is not None and drawn_alike(fit, V, F, tris, turn, corner_eps)
+    return drawn_alike(fit, V, F, tris, turn(), corner_eps)
 
 
 def _candidates(V: np.ndarray, F: np.ndarray, ids: np.ndarray, tris: np.ndarray, eps: Tol, sag: float, *,
@@ -427,7 +429,7 @@ def reclaim(at: _Atoms, regions: list, eps: Tol, sag: float) -> list[tuple[list,
             continue
         fit = regions[i][1]
         # the step its proven triangles are drawn at: a neighbour drawn at it is the same surface (:mod:`._exact_turn`)
-        turn = largest_turn(fit, V, F, np.concatenate([at.tris[a] for a in members[i]]))
+        turn = cache(partial(largest_turn, fit, V, F, np.concatenate([at.tris[a] for a in members[i]])))
         front = [n for a in members[i] for n in at.nbrs[a]]
         seen: set = set()
         while front:
@@ -609,7 +611,7 @@ def _curved_stage(at: _Atoms, eps: Tol, sag: float, found: list, tally: list[int
     for _ in range(MERGE_ROUNDS):
         merged = merge_curved(at, curved, lambda ids, tris: _union_fit(at, ids, tris, eps, sag),
                               lambda fit, ids, tris, own: _fits_exactly(fit, V, F, ids, tris, eps, sag,
-                                                                        largest_turn(fit, V, F, own)))
+                                                                        partial(largest_turn, fit, V, F, own)))
         if len(merged) == len(curved):
             break
         curved = reclaim(at, merged, eps, sag)

@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from scipy.spatial import cKDTree
+
 from ..fit import surface_normals
+from ._exact_enclosed import components
 from ._exact_kinks import shortest_height
 
 __all__ = ["RING_SPREAD", "flat_rings", "three_ring_tori"]
@@ -35,20 +38,8 @@ def rings(V: np.ndarray, center: np.ndarray, axis: np.ndarray, spread: float) ->
     h = w @ axis
     rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
     hr = np.c_[h, rho]
-    seen = np.zeros(len(hr), bool)
-    count = 0
-    for i in range(len(hr)):
-        if seen[i]:
-            continue
-        count += 1
-        stack = [i]
-        seen[i] = True
-        while stack:
-            j = stack.pop()
-            near = np.flatnonzero(~seen & (np.hypot(*(hr - hr[j]).T) <= spread))
-            seen[near] = True
-            stack.extend(near.tolist())
-    return count
+    ab = cKDTree(hr).query_pairs(spread, output_type="ndarray")
+    return len(np.unique(components(len(hr), ab[:, 0], ab[:, 1], np.ones(len(hr), bool))))
 
 
 def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends: np.ndarray, labels: np.ndarray,
@@ -57,18 +48,21 @@ def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends
     each shared edge's ends agree within their round-off tilts (2 eps over the shortest height of the triangle on
     each side). A fillet drawn as two bands does; a wall and its chamfer on three rings meet their neighbours at
     creases (export seeds 114 against 169, bench/exact.md "s39-wrong")."""
-    la, lb = labels[pairs[:, 0]], labels[pairs[:, 1]]
-    on = ((la == p) | (lb == p)) & (la != lb)
+    t, u = pairs[:, 0], pairs[:, 1]
+    flip = labels[u] == p
+    t, u = np.where(flip, u, t), np.where(flip, t, u)  # t on face p
+    on = (labels[t] == p) & (labels[u] != p)
     if not on.any():
         return False
-    for (t, u), e in zip(pairs[on], ends[on]):
-        if labels[t] != p:
-            t, u = u, t
-        turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[p], V[e]),
-                                                  surface_normals(fits[int(labels[u])], V[e]))), 0.0, 1.0)).max()
-        if turn > 2 * eps / shortest_height(V[F[t]]) + 2 * eps / shortest_height(V[F[u]]):
-            return False
-    return True
+    t, u, e = t[on], u[on], ends[on]
+    bound = np.repeat([2 * eps / shortest_height(V[F[x]]) + 2 * eps / shortest_height(V[F[y]]) for x, y in zip(t, u)], 2)
+    mine = surface_normals(fits[p], V[e.ravel()])
+    theirs = np.empty_like(mine)
+    side = np.repeat(labels[u], 2)
+    for q in np.unique(side):
+        theirs[side == q] = surface_normals(fits[int(q)], V[e.ravel()[side == q]])
+    turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", mine, theirs)), 0.0, 1.0))
+    return bool(np.all(turn <= bound))
 
 
 def three_ring_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float, pairs: np.ndarray,
@@ -89,12 +83,14 @@ def flat_rings(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, ato
     """A note when a torus face holds a whole plane atom (``atoms``: the plane atom of each triangle) at one height
     about its axis whose radii do not average to the major radius (module doc); "" otherwise."""
     found = 0
+    order = np.argsort(atoms, kind="stable")
+    bounds = np.searchsorted(atoms[order], np.arange(int(atoms.max()) + 2))
     for p, f in fits.items():
         if f.type != "torus":
             continue
         c, a = np.asarray(f.params["center"], float), np.asarray(f.params["axis_dir"], float)
         for q in np.unique(atoms[labels == p]):
-            tris = np.flatnonzero(atoms == q)
+            tris = order[bounds[q]:bounds[q + 1]]
             if not (labels[tris] == p).all():
                 continue
             w = V[np.unique(F[tris])] - c
