@@ -689,10 +689,10 @@ def test_chord_guides_lie_on_the_surface_to_second_order():
 
     r, n = 10.0, 24
     P, F = _rim_band(r, 20.0, n)
-    pts, _, faces, weights = chord_guides(P, own_normals(P, F, F, len(P)), F, 0.01)
+    pts, _, faces, lifts = chord_guides(P, own_normals(P, F, F, len(P)), F)
     guides = pts[len(P):]
     sag = r * (1 - np.cos(np.pi / n))
-    assert len(guides) == 4 * n + 2 * n and len(faces) == 6 * len(F) and len(weights) == len(guides)
+    assert len(guides) == 4 * n + 2 * n and len(faces) == 6 * len(F) and len(lifts) == len(guides)
     assert np.abs(np.linalg.norm(guides[:, :2], axis=1) - r).max() <= 0.1 * sag
     # the unlifted chord midpoints of the rims are a whole sag inside
     rim_mid = (P[F[:, 0]] + P[F[:, 1]]) / 2
@@ -701,9 +701,9 @@ def test_chord_guides_lie_on_the_surface_to_second_order():
 
 def test_a_band_drawn_by_its_rims_is_held_between_them_by_the_guides():
     """The same band through its vertices alone leaves the surface free between the rims (a thin-plate fill of two
-    circles, metres off here); with the chords' guides it lies as close to the cylinder between the rims as the fit
-    does at its vertices."""
-    from recon.fit import chord_guides
+    circles, metres off here); the exact fit sees it stray from the chords' guides and takes them in: it lies as close
+    to the cylinder between the rims as it does at its vertices."""
+    from recon.fit import fit_exact_bspline
     from recon.fit._bspline_surface import BSplineSurface
     from recon.segment._context import own_normals
 
@@ -717,8 +717,7 @@ def test_a_band_drawn_by_its_rims_is_held_between_them_by_the_guides():
         uv = S.closest_parameters(Q, None, iterations=20, grid=100)
         return float(np.abs(np.linalg.norm(S.evaluate(uv[:, 0], uv[:, 1])[:, :2], axis=1) - r).max())
 
-    pts, nrm, faces, weights = chord_guides(P, own_normals(P, F, F, len(P)), F, tol)
-    guided = fit_bspline_surface(pts, nrm, faces=faces, tolerance=tol, exact=True, guide_weights=weights)
+    guided = fit_exact_bspline(P, own_normals(P, F, F, len(P)), F, tol)
     bare = fit_bspline_surface(P, own_normals(P, F, F, len(P)), faces=F, tolerance=tol, exact=True)
     assert guided.ok and guided.n_points == len(P)
     assert off_cylinder(guided) <= 1.5 * guided.deviation["max"]

@@ -38,7 +38,7 @@ from ._bspline_surface import BSplineSurface, basis_functions, clamped_knots, pe
 from ._noise import estimate_normals
 from ._types import SurfaceFit, deviation_stats, within_tolerance
 
-__all__ = ["chord_guides", "fit_bspline_surface"]
+__all__ = ["chord_guides", "fit_bspline_surface", "fit_exact_bspline"]
 
 log = logging.getLogger(__name__)
 
@@ -220,20 +220,18 @@ def _parametrise(points, normals, faces):
     return uv, "harmonic", None
 
 
-def chord_guides(points: np.ndarray, normals: np.ndarray, faces: np.ndarray, tolerance: float):
-    """The points of an exact tessellation with guides added between them, for :func:`fit_bspline_surface`.
+def chord_guides(points: np.ndarray, normals: np.ndarray, faces: np.ndarray):
+    """Guides between the vertices of an exact tessellation, for :func:`fit_bspline_surface`'s ``guide_weights``.
 
     A CAD exporter leaves a face's inside without vertices wherever its chords stay within the deflection (a loft's
     wall drawn by its two sections alone): the vertices then pin the surface only along its rims. A quadratic surface
     through a triangle's corners lies off it by e(λ) = ½ Σ λ_i λ_j κ_ij ℓ_ij² at barycentric λ, with
     κ_ij ℓ_ij² = (N_j − N_i)·(P_j − P_i) from the corners' unit normals (signed: on the normals' side when > 0). The
     guides are each edge's midpoint and each triangle's centroid lifted by e along their mean normal: the surface's
-    points there to second order. The corners' normals are the long triangles' own (the chords', not the surface's),
-    so a guide's error grows with its lift: it is weighted by the inverse of its variance relative to the vertices',
-    min(1, (tolerance / lift)²).
+    points there to second order.
 
-    Returns ``(points, normals, faces, guide_weights)``: the n points, then a guide per edge and per triangle, the
-    triangles split in six over them, and the guides' weights.
+    Returns ``(points, normals, faces, lifts)``: the n points, then a guide per edge and per triangle, the triangles
+    split in six over them, and each guide's lift.
     """
     n = len(points)
     e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
@@ -241,7 +239,8 @@ def chord_guides(points: np.ndarray, normals: np.ndarray, faces: np.ndarray, tol
     mid = inverse.reshape(3, -1).T  # each triangle's edges 01, 12, 20
     pi, pj = points[edges[:, 0]], points[edges[:, 1]]
     turn = np.einsum("ij,ij->i", normals[edges[:, 1]] - normals[edges[:, 0]], pj - pi)  # κ ℓ² per edge
-    lifts = np.r_[turn / 8.0, turn[mid].sum(axis=1) / 18.0]
+    # e(λ) at an edge's midpoint (λ = ½, ½, 0): κ ℓ² / 8; at the centroid (λ = ⅓ each): Σ κ ℓ² / 18
+    lifts = np.r_[turn / 8.0, turn[mid].sum(axis=1) / 18.0]  # analytic factors, not tuned
     bases = np.concatenate([(pi + pj) / 2, points[faces].mean(axis=1)])
     guide_normals = np.concatenate([normals[edges].sum(axis=1), normals[faces].sum(axis=1)])
     guide_normals /= np.maximum(np.linalg.norm(guide_normals, axis=1, keepdims=True), 1e-300)
@@ -250,9 +249,36 @@ def chord_guides(points: np.ndarray, normals: np.ndarray, faces: np.ndarray, tol
     g = n + len(edges) + np.arange(len(faces))
     split = np.concatenate([np.c_[a, ab, ca], np.c_[ab, b, bc], np.c_[ca, bc, c],
                             np.c_[ab, bc, g], np.c_[bc, ca, g], np.c_[ca, ab, g]])
-    weights = np.minimum(1.0, (tolerance / np.maximum(np.abs(lifts), 1e-300)) ** 2)
     return (np.concatenate([points, bases + lifts[:, None] * guide_normals]),
-            np.concatenate([normals, guide_normals]), split, weights)
+            np.concatenate([normals, guide_normals]), split, lifts)
+
+
+#: The vertices alone fix the surface between them when it passes within reach of at least this share of the guides:
+#: the median, since a surface the vertices leave free strays from nearly all of them, and one they fix from a few.
+GUIDES_AGREE = 0.5
+
+
+def fit_exact_bspline(points: np.ndarray, normals: np.ndarray, faces: np.ndarray, tolerance: float) -> SurfaceFit:
+    """:func:`fit_bspline_surface` through the exact vertices of a CAD tessellation, guided between them where they
+    leave it free.
+
+    The fit through the vertices alone stands when it passes within reach of :data:`GUIDES_AGREE` of the
+    :func:`chord_guides` (tolerance + the guide's lift: a guide's error grows with its lift, since the long triangles'
+    normals are the chords', not the surface's). Else the guides enter the fit, each weighted by the inverse of its
+    variance relative to the vertices', min(1, (tolerance / lift)²); that fit is kept when it holds the vertices.
+    """
+    bare = fit_bspline_surface(points, normals, faces=faces, tolerance=tolerance, exact=True)
+    if not bare.ok:
+        return bare
+    pts, nrm, split, lifts = chord_guides(points, normals, faces)
+    surface = BSplineSurface.from_params(bare.params)
+    reach = tolerance + np.abs(lifts)
+    if np.mean(np.abs(surface.distance(pts[len(points):])) <= reach) >= GUIDES_AGREE:
+        return bare
+    weights = np.minimum(1.0, (tolerance / np.maximum(np.abs(lifts), 1e-300)) ** 2)
+    guided = fit_bspline_surface(pts, nrm, faces=split, tolerance=tolerance, exact=True, guide_weights=weights)
+    log.debug("bspline: the vertices leave the surface free between them; guided fit %s", guided.deviation)
+    return guided if guided.ok else bare
 
 
 # ------------------------------------------------------------------------------------------------ fit
