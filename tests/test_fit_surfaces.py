@@ -668,3 +668,57 @@ def test_a_narrow_exact_torus_patch_the_budget_stops_short_of_is_continued_to_it
     assert fit.params["major_radius"] == pytest.approx(big, abs=1e-3)
     assert fit.params["minor_radius"] == pytest.approx(small, abs=1e-4)
     assert fit.deviation["max"] <= eps
+
+
+def _rim_band(r: float, h: float, n: int):
+    """A cylinder band of radius r and height h drawn by its two rims alone, as an exporter draws a loft's wall
+    whose rulings are straight: n vertices a rim (the top turned by half a section), 2n long triangles."""
+    a = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    top = a + np.pi / n
+    P = np.vstack([np.c_[r * np.cos(a), r * np.sin(a), np.zeros(n)], np.c_[r * np.cos(top), r * np.sin(top), np.full(n, h)]])
+    i = np.arange(n)
+    j = (i + 1) % n
+    return P, np.vstack([np.c_[i, j, n + i], np.c_[j, n + j, n + i]])
+
+
+def test_chord_guides_lie_on_the_surface_to_second_order():
+    """On a 24-section cylinder band the guides (edge midpoints and centroids lifted by the quadratic sag estimate)
+    lie on the cylinder to within a tenth of the sections' chord sag: what is left is the arc's fourth-order term."""
+    from recon.fit import chord_guides
+    from recon.segment._context import own_normals
+
+    r, n = 10.0, 24
+    P, F = _rim_band(r, 20.0, n)
+    pts, _, faces, lifts = chord_guides(P, own_normals(P, F, F, len(P)), F)
+    guides = pts[len(P):]
+    sag = r * (1 - np.cos(np.pi / n))
+    assert len(guides) == 4 * n + 2 * n and len(faces) == 6 * len(F) and len(lifts) == len(guides)
+    assert np.abs(np.linalg.norm(guides[:, :2], axis=1) - r).max() <= 0.1 * sag
+    # the unlifted chord midpoints of the rims are a whole sag inside
+    rim_mid = (P[F[:, 0]] + P[F[:, 1]]) / 2
+    assert np.linalg.norm(rim_mid[:n, :2], axis=1).min() == pytest.approx(r - sag, rel=1e-9)
+
+
+def test_a_band_drawn_by_its_rims_is_held_between_them_by_the_guides():
+    """The same band through its vertices alone leaves the surface free between the rims (a thin-plate fill of two
+    circles, metres off here); the exact fit sees it stray from the chords' guides and takes them in: it lies as close
+    to the cylinder between the rims as it does at its vertices."""
+    from recon.fit import fit_exact_bspline
+    from recon.fit._bspline_surface import BSplineSurface
+    from recon.segment._context import own_normals
+
+    r, h, tol = 10.0, 20.0, 0.05
+    P, F = _rim_band(r, h, 24)
+    t, z = np.meshgrid(np.linspace(0, 2 * np.pi, 120), np.linspace(0.05 * h, 0.95 * h, 30))
+    Q = np.c_[r * np.cos(t.ravel()), r * np.sin(t.ravel()), z.ravel()]
+
+    def off_cylinder(fit) -> float:
+        S = BSplineSurface.from_params(fit.params)
+        uv = S.closest_parameters(Q, None, iterations=20, grid=100)
+        return float(np.abs(np.linalg.norm(S.evaluate(uv[:, 0], uv[:, 1])[:, :2], axis=1) - r).max())
+
+    guided = fit_exact_bspline(P, own_normals(P, F, F, len(P)), F, tol)
+    bare = fit_bspline_surface(P, own_normals(P, F, F, len(P)), faces=F, tolerance=tol, exact=True)
+    assert guided.ok and guided.n_points == len(P)
+    assert off_cylinder(guided) <= 1.5 * guided.deviation["max"]
+    assert off_cylinder(bare) > 10 * bare.deviation["max"]

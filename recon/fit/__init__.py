@@ -3,7 +3,7 @@
 from ._curves import fit_bspline_curve, fit_circle, fit_curve, fit_edge_curve, fit_line, point_curve, polyline_curve
 from ._noise import default_tolerance, estimate_normals, noise_sigma, ring_noise
 from ._blend import fit_rolling_ball, ruled_surface
-from ._bspline import fit_bspline_surface
+from ._bspline import chord_guides, fit_bspline_surface, fit_exact_bspline
 from ._primitives import fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ._select import ANALYTIC_FITTERS, MISFIT_SCALE, fit_surface, residual_scale
 from ._quickfit import quick_fit, surface_normals
@@ -38,7 +38,9 @@ __all__ = [
     "deviation_stats",
     "estimate_normals",
     "fit_bspline_curve",
+    "chord_guides",
     "fit_bspline_surface",
+    "fit_exact_bspline",
     "fit_circle",
     "fit_curve",
     "fit_edge_curve",

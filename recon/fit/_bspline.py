@@ -38,7 +38,7 @@ from ._bspline_surface import BSplineSurface, basis_functions, clamped_knots, pe
 from ._noise import estimate_normals
 from ._types import SurfaceFit, deviation_stats, within_tolerance
 
-__all__ = ["fit_bspline_surface"]
+__all__ = ["chord_guides", "fit_bspline_surface", "fit_exact_bspline"]
 
 log = logging.getLogger(__name__)
 
@@ -220,6 +220,67 @@ def _parametrise(points, normals, faces):
     return uv, "harmonic", None
 
 
+def chord_guides(points: np.ndarray, normals: np.ndarray, faces: np.ndarray):
+    """Guides between the vertices of an exact tessellation, for :func:`fit_bspline_surface`'s ``guide_weights``.
+
+    A CAD exporter leaves a face's inside without vertices wherever its chords stay within the deflection (a loft's
+    wall drawn by its two sections alone): the vertices then pin the surface only along its rims. A quadratic surface
+    through a triangle's corners lies off it by e(λ) = ½ Σ λ_i λ_j κ_ij ℓ_ij² at barycentric λ, with
+    κ_ij ℓ_ij² = (N_j − N_i)·(P_j − P_i) from the corners' unit normals (signed: on the normals' side when > 0). The
+    guides are each edge's midpoint and each triangle's centroid lifted by e along their mean normal: the surface's
+    points there to second order.
+
+    Returns ``(points, normals, faces, lifts)``: the n points, then a guide per edge and per triangle, the triangles
+    split in six over them, and each guide's lift.
+    """
+    n = len(points)
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    edges, inverse = np.unique(e, axis=0, return_inverse=True)
+    mid = inverse.reshape(3, -1).T  # each triangle's edges 01, 12, 20
+    pi, pj = points[edges[:, 0]], points[edges[:, 1]]
+    turn = np.einsum("ij,ij->i", normals[edges[:, 1]] - normals[edges[:, 0]], pj - pi)  # κ ℓ² per edge
+    # e(λ) at an edge's midpoint (λ = ½, ½, 0): κ ℓ² / 8; at the centroid (λ = ⅓ each): Σ κ ℓ² / 18
+    lifts = np.r_[turn / 8.0, turn[mid].sum(axis=1) / 18.0]  # analytic factors, not tuned
+    bases = np.concatenate([(pi + pj) / 2, points[faces].mean(axis=1)])
+    guide_normals = np.concatenate([normals[edges].sum(axis=1), normals[faces].sum(axis=1)])
+    guide_normals /= np.maximum(np.linalg.norm(guide_normals, axis=1, keepdims=True), 1e-300)
+    a, b, c = faces.T
+    ab, bc, ca = (n + mid).T
+    g = n + len(edges) + np.arange(len(faces))
+    split = np.concatenate([np.c_[a, ab, ca], np.c_[ab, b, bc], np.c_[ca, bc, c],
+                            np.c_[ab, bc, g], np.c_[bc, ca, g], np.c_[ca, ab, g]])
+    return (np.concatenate([points, bases + lifts[:, None] * guide_normals]),
+            np.concatenate([normals, guide_normals]), split, lifts)
+
+
+#: The vertices alone fix the surface between them when it passes within reach of at least this share of the guides:
+#: the median, since a surface the vertices leave free strays from nearly all of them, and one they fix from a few.
+GUIDES_AGREE = 0.5
+
+
+def fit_exact_bspline(points: np.ndarray, normals: np.ndarray, faces: np.ndarray, tolerance: float) -> SurfaceFit:
+    """:func:`fit_bspline_surface` through the exact vertices of a CAD tessellation, guided between them where they
+    leave it free.
+
+    The fit through the vertices alone stands when it passes within reach of :data:`GUIDES_AGREE` of the
+    :func:`chord_guides` (tolerance + the guide's lift: a guide's error grows with its lift, since the long triangles'
+    normals are the chords', not the surface's). Else the guides enter the fit, each weighted by the inverse of its
+    variance relative to the vertices', min(1, (tolerance / lift)²); that fit is kept when it holds the vertices.
+    """
+    bare = fit_bspline_surface(points, normals, faces=faces, tolerance=tolerance, exact=True)
+    if not bare.ok:
+        return bare
+    pts, nrm, split, lifts = chord_guides(points, normals, faces)
+    surface = BSplineSurface.from_params(bare.params)
+    reach = tolerance + np.abs(lifts)
+    if np.mean(np.abs(surface.distance(pts[len(points):])) <= reach) >= GUIDES_AGREE:
+        return bare
+    weights = np.minimum(1.0, (tolerance / np.maximum(np.abs(lifts), 1e-300)) ** 2)
+    guided = fit_bspline_surface(pts, nrm, faces=split, tolerance=tolerance, exact=True, guide_weights=weights)
+    log.debug("bspline: the vertices leave the surface free between them; guided fit %s", guided.deviation)
+    return guided if guided.ok else bare
+
+
 # ------------------------------------------------------------------------------------------------ fit
 
 
@@ -270,7 +331,7 @@ def _design(uv, ku, kv, p, nu, nv, periodic_u=False):
     return sp.csr_matrix((vals.ravel(), (rows, cols.ravel())), shape=(m, nu * nv))
 
 
-def _solve(points, uv, box, intervals, degree, smoothing, periodic_u=False):
+def _solve(points, uv, box, intervals, degree, smoothing, periodic_u=False, weights=None, held=None):
     (u0, u1), (v0, v1) = box
     kv = clamped_knots(v0, v1, intervals[1], degree)
     nv = intervals[1] + degree
@@ -282,11 +343,17 @@ def _solve(points, uv, box, intervals, degree, smoothing, periodic_u=False):
         nu = intervals[0] + degree
     a = _design(uv, ku, kv, degree, nu, nv, periodic_u)
     penalty, penalty_mean, ridge = _penalty(nu, nv, periodic_u)
-    ata = (a.T @ a).tocsc()
-    lam = smoothing * ata.diagonal().mean() / max(penalty_mean, 1e-300)
+    if weights is None:
+        ata, rhs = (a.T @ a).tocsc(), a.T @ points
+        lam = smoothing * ata.diagonal().mean() / max(penalty_mean, 1e-300)
+    else:
+        ata, rhs = (a.T @ sp.diags(weights) @ a).tocsc(), a.T @ (weights[:, None] * points)
+        # λ as the held points alone would set it: guides add data, not stiffness
+        full = a[:held]
+        lam = smoothing * (full.T @ full).diagonal().mean() / max(penalty_mean, 1e-300)
     # a tiny ridge keeps control points with no data and no curvature (corners of the box) determined
     system = (ata + lam * penalty + 1e-10 * ata.diagonal().mean() * ridge).tocsc()
-    cp = spsolve(system, a.T @ points)
+    cp = spsolve(system, rhs)
     return BSplineSurface(degree, degree, ku, kv, np.asarray(cp).reshape(nu, nv, 3), periodic_u)
 
 
@@ -302,6 +369,7 @@ def fit_bspline_surface(
     corrections: int = 3,
     max_intervals: int = 40,
     exact: bool = False,
+    guide_weights=None,
 ) -> SurfaceFit:
     """Penalised least-squares tensor-product B-spline through a patch (see the module notes for the method).
 
@@ -329,6 +397,10 @@ def fit_bspline_surface(
         The points lie on the surface without noise (a CAD tessellation): the control grid may grow to one control
         point per :data:`EXACT_POINTS_PER_CONTROL` points instead of :data:`POINTS_PER_CONTROL`, for fewer than
         :data:`EXACT_MAX_POINTS` points; for more, when the grid of :data:`POINTS_PER_CONTROL` misses ``tolerance``.
+    guide_weights : (g,) float in (0, 1], optional
+        The last g points are guides (:func:`chord_guides`): each enters the least squares with its weight and
+        shapes the surface where the other points leave it free (between the vertices of long triangles), but it is
+        not held to ``tolerance`` and does not count towards the control grid the data support.
 
     Returns
     -------
@@ -352,6 +424,13 @@ def fit_bspline_surface(
             raise FitError("`faces` indexes outside `points`")
     if degree < 1:
         raise FitError(f"`degree` must be ≥ 1, got {degree}")
+    w = None
+    if guide_weights is not None:
+        g = np.asarray(guide_weights, dtype=float)
+        if g.ndim != 1 or len(g) >= len(pts) - 15 or not np.all((g > 0) & (g <= 1)):
+            raise FitError(f"`guide_weights` must be at most {len(pts) - 16} values in (0, 1]")
+        w = np.r_[np.ones(len(pts) - len(g)), g]
+    held = len(pts) if w is None else len(pts) - len(g)
     uv, how, u_length = _parametrise(pts, nrm, faces)
     if uv is None:
         return SurfaceFit("bspline", {}, deviation_stats(np.empty(0)), len(pts), ok=False, reason=f"bspline: {how}")
@@ -359,13 +438,13 @@ def fit_bspline_surface(
     best: SurfaceFit | None = None
     # exact points of many: the coarser grid first (a finer one bends where it leaves the data), the finer one only when
     # the coarser misses the tolerance (a loft's wall of 1,576 exact vertices: 2.2x the tolerance at 4 points per control)
-    grids = [EXACT_POINTS_PER_CONTROL] if exact and len(pts) < EXACT_MAX_POINTS else (
+    grids = [EXACT_POINTS_PER_CONTROL] if exact and held < EXACT_MAX_POINTS else (
         [POINTS_PER_CONTROL, EXACT_POINTS_PER_CONTROL] if exact and tolerance is not None else [POINTS_PER_CONTROL])
     for per_control in grids:
         for cand in uv if periodic else [uv]:
             fit = _fit_parametrised(pts, cand, periodic, u_length, tolerance=tolerance, degree=degree,
                                     intervals=intervals, smoothing=smoothing, corrections=corrections,
-                                    max_intervals=max_intervals, per_control=per_control)
+                                    max_intervals=max_intervals, per_control=per_control, weights=w, held=held)
             if best is None or fit.ok > best.ok or (fit.ok == best.ok and fit.deviation["p99"] < best.deviation["p99"]):
                 best = fit
             if fit.ok:
@@ -384,8 +463,11 @@ def fit_bspline_surface(
 
 
 def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, intervals, smoothing, corrections,
-                      max_intervals, per_control: float = POINTS_PER_CONTROL) -> SurfaceFit:
-    """Steps 2–5 of the module notes on one initial parametrisation ``uv`` (n, 2)."""
+                      max_intervals, per_control: float = POINTS_PER_CONTROL, weights=None,
+                      held: int | None = None) -> SurfaceFit:
+    """Steps 2–5 of the module notes on one initial parametrisation ``uv`` (n, 2); ``weights`` (n,) of the least
+    squares; the first ``held`` points (default all) are held to ``tolerance``, the rest are guides."""
+    n_held = len(pts) if held is None else held
     lo, hi = uv.min(axis=0), uv.max(axis=0)
     # UV box grown by 5% of its extent so the surface covers its boundary points (scales with the patch)
     margin = 0.05 * (hi - lo)
@@ -397,27 +479,27 @@ def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, interva
         extent = np.array([u_length, hi[1] - lo[1]])
     aspect = extent / max(extent.max(), 1e-300)
     # the data must support the control grid: about ≥ `per_control` points per control point
-    cap = max(3, int(min(max_intervals, np.sqrt(len(pts) / per_control) - degree)))
+    cap = max(3, int(min(max_intervals, np.sqrt(n_held / per_control) - degree)))
     if periodic:
         # the same ≥ `per_control` points per control point, counted on the actual grid: a band is long in u and short in v,
         # and a square cap would starve u (an elliptic tube of 2,880 points: 23 × 10 controls, RMS 1.8 σ)
         def controls(c):
             return max(degree + 2, round(c * aspect[0])) * (max(2, round(c * aspect[1])) + degree)
 
-        cap = max([c for c in range(3, max_intervals + 1) if controls(c) <= len(pts) / per_control], default=3)
+        cap = max([c for c in range(3, max_intervals + 1) if controls(c) <= n_held / per_control], default=3)
     # about 40 points per knot span by default: noise averages out (tuned: see POINTS_PER_CONTROL)
-    k = intervals or max(3, int(round(np.sqrt(len(pts) / 40.0))))
+    k = intervals or max(3, int(round(np.sqrt(n_held / 40.0))))
     k = min(k, cap)
     while True:
         spans = (max(2, int(round(k * aspect[0]))), max(2, int(round(k * aspect[1]))))
         if periodic:  # a periodic direction needs more control rows than the degree (else rows repeat in a span)
             spans = (max(spans[0], degree + 2), spans[1])
-        surf = _solve(pts, uv, box, spans, degree, smoothing, periodic)
+        surf = _solve(pts, uv, box, spans, degree, smoothing, periodic, weights, n_held)
         cur = uv
         for _ in range(corrections):
             cur = surf.closest_parameters(pts, cur, iterations=4)
-            surf = _solve(pts, cur, box, spans, degree, smoothing, periodic)
-        d = surf.distance(pts, cur)
+            surf = _solve(pts, cur, box, spans, degree, smoothing, periodic, weights, n_held)
+        d = surf.distance(pts[:n_held], cur[:n_held])
         dev = deviation_stats(d)
         if tolerance is None or within_tolerance(dev, tolerance) or k >= cap:
             break
@@ -427,4 +509,4 @@ def _fit_parametrised(pts, uv, periodic, u_length, *, tolerance, degree, interva
     if tolerance is not None and not within_tolerance(dev, tolerance):
         ok = False
         reason = f"bspline: deviation p99 {dev['p99']:.3g} / max {dev['max']:.3g} exceeds tolerance {tolerance:.3g}"
-    return SurfaceFit("bspline", surf.to_params(), dev, len(pts), ok=ok, reason=reason)
+    return SurfaceFit("bspline", surf.to_params(), dev, n_held, ok=ok, reason=reason)

@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FitError
-from ..fit import CLOSED_KINDS, SurfaceFit, fit_bspline_surface, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
+from ..fit import CLOSED_KINDS, SurfaceFit, fit_exact_bspline, fit_cone, fit_cylinder, fit_plane, fit_sphere, fit_torus
 from ..mesh import Mesh
 from ._context import own_normals
 from ._exact_crease import creased_note
@@ -522,9 +522,8 @@ def _bspline_through(V: np.ndarray, F: np.ndarray, tris: np.ndarray, tolerance: 
     if len(ids) < 16:
         return None
     local = np.searchsorted(ids, F[tris])
-    nrm = own_normals(V, F[tris], local, len(ids))
     try:
-        fit = fit_bspline_surface(V[ids], nrm, faces=local, tolerance=tolerance, exact=True)
+        fit = fit_exact_bspline(V[ids], own_normals(V, F[tris], local, len(ids)), local, tolerance)
     except (FitError, np.linalg.LinAlgError, ValueError) as err:
         log.info("free-form piece of %d triangles: no B-spline (%s)", len(tris), err)
         return None
