@@ -10,7 +10,7 @@ import logging
 import os
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -123,18 +123,9 @@ def convert(
     -------
     Conversion
     """
-    from .brep import build_solid  # the CAD kernel loads only when a B-rep is wanted
-    from .brep._messages import occ_messages  # OpenCascade's own messages: to the log, not to stdout
-    from .network import curve_network
-
     def step(name, frac):
         if progress is not None:
             progress(name, frac)
-
-    def items(name):  # a stage's items, as Count fractions; 0.0 and 1.0 stay the stage's start and end
-        if progress is None:
-            return None
-        return lambda done, total, what: progress(name, Count(done, total, what)) if 0 < done < total else None
 
     times: dict[str, float] = {}
     t = time.perf_counter()
@@ -149,55 +140,96 @@ def convert(
     t = time.perf_counter()
     step("decompose", 0.0)
     found, work, dec = _decomposed(mesh, tolerance, scale, jobs)
-    full, mesh = mesh, (mesh if work is None else work.mesh)  # the stages up to the B-rep work on the copy
     times["decompose"] = time.perf_counter() - t
     step("decompose", 1.0)
 
-    if tolerance is None:
-        tolerance = tolerance_for(0.0, mesh.diagonal) if dec is None else (
-            getattr(dec, "tolerance", None) or tolerance_for(dec.noise, mesh.diagonal))
-        log.info("tolerance %.4g", tolerance)
-
-    t = time.perf_counter()
-    step("fit", 0.0)
-    exact_notes = None
-    if found is not None:
-        labels, fits, exact_notes = found.labels, found.fits, found.notes
-        dec = as_decomposition(mesh, labels)
+    run = _Run(mesh, holes, tolerance, deviation, progress, jobs, times)
+    if dec is None:  # the exact vertices proved the faces
+        result, work = run.finish(found, None), None
     else:
-        assert dec is not None  # decomposed above: the exact path found nothing
-        labels, fits = _faces_and_fits(mesh, dec, tolerance, items("fit"))
-    times["fit"] = time.perf_counter() - t
-    step("fit", 1.0)
+        result = run.finish(None, dec, work)
+        # exact faces whose count is open are the answer only where the decomposition's result fails a rule
+        if found is not None and not result.verdict.ok:
+            log.info("the decomposition's result fails a rule: the exact vertices' faces, their count open, instead")
+            result, work = run.finish(found, None), None
+    return replace(result, extra=_note_mesh_changes(result.report, user, spikes, holes, work))
 
-    t = time.perf_counter()
-    step("brep", 0.0)
-    kinds = _face_kinds(dec, labels)
-    network = curve_network(mesh.vertices, mesh.faces, labels)
-    areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
-    with occ_messages():
-        brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
-                           part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=jobs,
-                           progress=items("brep"), mesh_points=mesh.vertices)
-    names = _face_names(brep)  # (an O(faces²) match: once, for the deviation and the report)
-    times["brep"] = time.perf_counter() - t
-    if work is not None:  # measured and judged against the input's triangles, labelled through the copy
-        mesh, labels = full, work.input_labels(labels)
-    step("brep", 1.0)
 
-    dev, dev_error = None, None
-    if deviation:
+@dataclass
+class _Run:
+    """The stages after the decomposition (fit, brep, deviation, report) for one candidate set of faces."""
+
+    mesh: Mesh
+    holes: HoleReport
+    tolerance: float | None
+    deviation: bool
+    progress: Progress | None
+    jobs: int | None
+    times: dict
+
+    def _items(self, name):  # a stage's items, as Count fractions; 0.0 and 1.0 stay the stage's start and end
+        progress = self.progress
+        if progress is None:
+            return None
+        return lambda done, total, what: progress(name, Count(done, total, what)) if 0 < done < total else None
+
+    def _step(self, name, frac):
+        if self.progress is not None:
+            self.progress(name, frac)
+
+    def finish(self, found, dec: Decomposition | None, work=None) -> Conversion:
+        """The conversion from the exact faces ``found`` or else the decomposition ``dec`` (of the working copy
+        ``work`` when there is one)."""
+        from .brep import build_solid  # the CAD kernel loads only when a B-rep is wanted
+        from .brep._messages import occ_messages  # OpenCascade's own messages: to the log, not to stdout
+        from .network import curve_network
+
+        times = dict(self.times)
+        full, mesh = self.mesh, (self.mesh if work is None else work.mesh)  # the stages up to the B-rep: the copy
+        tolerance = self.tolerance
+        if tolerance is None:
+            tolerance = tolerance_for(0.0, mesh.diagonal) if dec is None else (
+                getattr(dec, "tolerance", None) or tolerance_for(dec.noise, mesh.diagonal))
+            log.info("tolerance %.4g", tolerance)
+
         t = time.perf_counter()
-        step("deviation", 0.0)
-        dev, dev_error = _deviation(mesh, brep, names, holes.input_vertices, items("deviation"))
-        times["deviation"] = time.perf_counter() - t
-        step("deviation", 1.0)
+        self._step("fit", 0.0)
+        if found is not None:
+            labels, fits = found.labels, found.fits
+            dec = as_decomposition(mesh, labels)
+        else:
+            assert dec is not None
+            labels, fits = _faces_and_fits(mesh, dec, tolerance, self._items("fit"))
+        times["fit"] = time.perf_counter() - t
+        self._step("fit", 1.0)
 
-    report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error)
-    if exact_notes is not None:  # the faces were found from exact vertices (recon.segment._exact), not decomposed
-        report["exact_vertices"] = {"faces": int(labels.max()) + 1, "notes": list(exact_notes)}
-    extra = _note_mesh_changes(report, user, spikes, holes, work)
-    return Conversion(report, mesh, dec, labels, fits, brep, extra=extra)
+        t = time.perf_counter()
+        self._step("brep", 0.0)
+        kinds = _face_kinds(dec, labels)
+        network = curve_network(mesh.vertices, mesh.faces, labels)
+        areas = np.bincount(labels, weights=mesh.face_areas, minlength=labels.max() + 1)
+        with occ_messages():
+            brep = build_solid(network, fits, tolerance=tolerance, part_kinds=kinds,
+                               part_areas={p: float(a) for p, a in enumerate(areas)}, jobs=self.jobs,
+                               progress=self._items("brep"), mesh_points=mesh.vertices)
+        names = _face_names(brep)  # (an O(faces²) match: once, for the deviation and the report)
+        times["brep"] = time.perf_counter() - t
+        if work is not None:  # measured and judged against the input's triangles, labelled through the copy
+            mesh, labels = full, work.input_labels(labels)
+        self._step("brep", 1.0)
+
+        dev, dev_error = None, None
+        if self.deviation:
+            t = time.perf_counter()
+            self._step("deviation", 0.0)
+            dev, dev_error = _deviation(mesh, brep, names, self.holes.input_vertices, self._items("deviation"))
+            times["deviation"] = time.perf_counter() - t
+            self._step("deviation", 1.0)
+
+        exact = None if found is None else {  # the faces were found from exact vertices, not decomposed
+            "faces": int(labels.max()) + 1, "notes": list(found.notes), "open_count": list(found.open_count)}
+        report = _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error, exact)
+        return Conversion(report, mesh, dec, labels, fits, brep)
 
 
 def _deviation(mesh: Mesh, brep, names, input_vertices: int, progress) -> tuple[Any, str | None]:
@@ -289,14 +321,15 @@ def _exact(mesh: Mesh, tolerance: float | None):
 def _decomposed(mesh: Mesh, tolerance: float | None, scale: float | None, jobs: int | None):
     """The decompose stage: ``(found, work, dec)``, the exact-vertex faces (:func:`_exact`) or else the decomposition
     of ``mesh``, or of its working copy ``work`` when a dense noisy scan has one (:func:`recon._working.working_copy`;
-    the copy's own noise sets its window and tolerance: its points are what is fitted, bench/scan.md)."""
+    the copy's own noise sets its window and tolerance: its points are what is fitted, bench/scan.md). Exact faces
+    whose count is open (``found.open_count``) come with the decomposition too."""
     found = _exact(mesh, tolerance) if scale is None else None
-    if found is not None:
+    if found is not None and not found.open_count:
         return found, None, None
     work = working_copy(mesh, tolerance) if scale is None else None
     if work is None:
-        return None, None, decompose(mesh, scale=scale, jobs=jobs)
-    return None, work, decompose(work.mesh, jobs=jobs)
+        return found, None, decompose(mesh, scale=scale, jobs=jobs)
+    return found, work, decompose(work.mesh, jobs=jobs)
 
 
 def _one_blas_thread():
@@ -340,7 +373,7 @@ def _face_kinds(dec: Decomposition, labels: np.ndarray) -> dict[int, str]:
     return out
 
 
-def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error=None) -> dict:
+def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_error=None, exact=None) -> dict:
     """The conversion's figures as strict JSON data (no NaN or infinity: None where a figure does not exist), with
     the verdict of :func:`recon.verdict.judge` on the result in memory (the command line judges the written file)."""
     from .verdict import judge, strict_json, unmeshed_names
@@ -402,6 +435,8 @@ def _report(mesh, dec, labels, fits, brep, dev, times, tolerance, names, dev_err
         report["deviation_error"] = dev_error
         report["warnings"].append(f"deviation not measured: {dev_error}")
     report["unmeshed_faces"] = unmeshed_names(brep.occ, names)  # FreeCAD would show holes there
+    if exact is not None:
+        report["exact_vertices"] = exact
     report = strict_json(report)
     report["verdict"] = judge(report, mesh, labels, source="the result in memory",
                               deviation_error=dev_error).to_json()

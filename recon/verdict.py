@@ -22,6 +22,9 @@ each rule with its figure, its limit and the faces where it fails. T is the tole
 * ``meshable``: every face gets triangles from OpenCascade's mesher at FreeCAD's display settings
   (:func:`recon.brep._tessellate.unmeshed_faces`): a face without them shows as a hole in FreeCAD and in any viewer
   that meshes the same way.
+* ``face_count``: where the faces were found from a CAD export's exact vertices, the vertices prove their count: no
+  face on which they hold another count as well (a torus on three rings of vertices is one face or two bands of
+  cones; ``exact_vertices.open_count`` in the report says which).
 
 Without a measured deviation the four deviation rules are "not checked" (``ok`` None): the verdict is then ``ok``
 when every other rule holds, and ``within_tolerance`` is None, never True.
@@ -49,7 +52,7 @@ log = logging.getLogger(__name__)
 
 #: The rules in the order the report lists them.
 RULES = ("solid", "coverage", "meshable", "overlap", "mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95",
-         "shape_to_mesh_max", "volume")
+         "shape_to_mesh_max", "volume", "face_count")
 _DEVIATION_RULES = ("mesh_to_shape_p95", "mesh_to_shape_max", "shape_to_mesh_p95", "shape_to_mesh_max")
 
 #: k: the largest deviation allowed is k·T. The fit stage accepts a surface with its max within 2T; with the default
@@ -364,6 +367,13 @@ def _coverage_rule(report: dict, labels: np.ndarray) -> Rule:
     return Rule("coverage", not missing, len(missing), 0, tuple(missing), detail)
 
 
+def _count_rule(report: dict) -> Rule:
+    open_count = report.get("exact_vertices", {}).get("open_count", [])
+    if not open_count:
+        return Rule("face_count", True, 0, 0, (), "the face count is proven (or found from the decomposition)")
+    return Rule("face_count", False, len(open_count), 0, (), "the face count is open: " + "; ".join(open_count))
+
+
 def _overlap_rule(mesh, labels: np.ndarray, report: dict, tolerance: float) -> Rule:
     pairs = overlapping_shells(mesh, tolerance)
     if not pairs:
@@ -523,7 +533,7 @@ def judge(report: dict, mesh, labels: np.ndarray, *, validity: dict | None = Non
     rules = [solid, _coverage_rule(report, labels), meshable,
              overlap if overlap is not None else _overlap_rule(mesh, labels, report, tolerance)]
     rules += _deviation_rules(report, sag, mesh.face_areas, labels, mesh.face_adjacency, tolerance, deviation_error)
-    rules.append(volume)
+    rules += [volume, _count_rule(report)]
     verdict = Verdict(tuple(rules), time.perf_counter() - t)
     for r in verdict.failed:
         log.info("rule %s failed: %s", r.rule, r.detail)

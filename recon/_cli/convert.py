@@ -152,7 +152,7 @@ def _rule_words(rule: dict, unit: str) -> str:
     faces = rule["faces"]
     at = f", faces {', '.join(faces[:4])}{' …' if len(faces) > 4 else ''}" if faces else ""
     if isinstance(rule["value"], (int, float)) and isinstance(rule["limit"], (int, float)) \
-            and rule["rule"] not in ("coverage", "overlap"):
+            and rule["rule"] not in ("coverage", "overlap", "face_count"):
         unit = f"{unit}³" if rule["rule"] == "volume" else unit
         return f"rule {rule['rule']}: {length(rule['value'], unit)} vs limit {length(rule['limit'], unit)}{at}"
     return f"rule {rule['rule']}: {rule['detail']}{at}"

@@ -64,11 +64,13 @@ COS_CREASE = float(np.cos(CREASE_RAD))
 
 @dataclass
 class ExactFaces:
-    """The faces of an exact mesh: a label per triangle, a surface per label, and the notes for the report."""
+    """The faces of an exact mesh: a label per triangle, a surface per label, the notes for the report, and why the
+    face count is open where the vertices hold another count as well (empty when they prove it)."""
 
     labels: np.ndarray
     fits: dict
     notes: list = field(default_factory=list)
+    open_count: list = field(default_factory=list)
 
 
 def roundoff(vertices: np.ndarray) -> float:
@@ -706,14 +708,14 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     why = _gives_up(pairs, labels, fits, int(loose.sum())) or (" ".join(kinks) if loosened else "") or creased_note(
         V, F, mesh.face_normals, pairs, labels, [fits[p].type for p in range(len(fits))],
         lambda tris: _bspline_through(V, F, tris, tolerance))
-    # two bands a torus holds whatever they are: one face or two, and the torus off both between the rings
-    why = why or three_ring_tori(V, F, labels, fits, eps, pairs, np.asarray(mesh.face_adjacency_edges).reshape(-1, 2))
     if why:
         log.info("exact: %s", why)
         return None
-    # a flat ring on a torus to round-off: the surface is right either way, only the count is open
+    # two bands a torus holds whatever they are (one face or two), and a flat ring on a torus to round-off: the
+    # surfaces are right either way, only the count is open
+    rings = three_ring_tori(V, F, labels, fits, eps, pairs, np.asarray(mesh.face_adjacency_edges).reshape(-1, 2))
     flat = flat_rings(V, F, labels, fits, atoms, eps)
-    return ExactFaces(labels, fits, notes + kinks + ([flat] if flat else []))
+    return ExactFaces(labels, fits, notes + kinks, [n for n in (rings, flat) if n])
 
 
 def _relabelled(labels: np.ndarray, fits: dict, whole: list) -> tuple[np.ndarray, dict]:
