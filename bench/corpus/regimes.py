@@ -1,7 +1,8 @@
 """Tessellation regimes of the corpus: how a user's mesh of a corpus part looks, with the true face of every triangle.
 
 ``tessellate(solid, regime, seed) -> (vertices, faces, true_face_per_triangle)``; every regime parameter is drawn
-from ``default_rng([seed, REGIME_CODE[regime]])``, so a (seed, regime) pair is one mesh on every machine.
+from ``default_rng([seed, REGIME_CODE[regime]])``, and no choice is made on BLAS or numpy SIMD results (their last
+bit depends on the CPU), so a (seed, regime) pair is one mesh on every x86 machine with AVX2 (bench/scan.md "s40-det").
 
 - ``export``: OpenCascade's tessellation (``BRepMesh_IncrementalMesh``) at STL-export settings: chord deviation
   0.01–1 % of the diagonal (log-uniform), angle 0.1–0.8 rad; per-face triangulations welded at their shared edge
@@ -23,6 +24,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import numpy as np
@@ -68,8 +70,13 @@ def regime_rng(seed: int, regime: str):
     return np.random.default_rng([int(seed), REGIME_CODE[regime]])
 
 
+def _norm3(d) -> float:
+    """|d| of a 3-vector without BLAS (np.linalg.norm's last bit depends on the CPU's kernel): the remesher's."""
+    return make_fixtures()._norm(d)
+
+
 def diagonal(vertices) -> float:
-    return float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
+    return _norm3(vertices.max(axis=0) - vertices.min(axis=0))
 
 
 def export_settings(seed: int) -> tuple[float, float]:
@@ -102,7 +109,14 @@ def subdivisions(remeshed: int, target: int, bounds: tuple[int, int]) -> int:
         raise ValueError("bounds must span a factor 4 (one subdivision) and the mesh have a triangle")
     # with hi ≥ 4 lo some k lands inside the bounds whenever remeshed ≤ hi; a coarser remesh is kept as it is
     ks = [k for k in range(0, 16) if lo <= remeshed * 4**k <= hi] or [0]
-    return min(ks, key=lambda k: abs(math.log(remeshed * 4**k / target)))
+    return min(ks, key=lambda k: ratio_off(remeshed * 4**k, target))
+
+
+def ratio_off(count: int, target: int) -> Fraction:
+    """How far ``count`` is from ``target``, exactly: max(count/target, target/count) (|log| of the ratio, ordered
+    the same). Integers, not logarithms: a count exactly twice and another half the target tie on every machine,
+    and the first wins; a logarithm's last bit (libm's, per CPU variant) would pick one."""
+    return max(Fraction(count, target), Fraction(target, count))
 
 
 def _dense(solid, target, bounds, *, size=None):
@@ -116,7 +130,7 @@ def _dense(solid, target, bounds, *, size=None):
     mf = make_fixtures()
     table = mf.face_table(solid)
     area = sum(e["area"] for e in table)
-    k0 = max(0, math.ceil(math.log(target / REMESH_MAX, 4)))
+    k0 = next(k for k in range(16) if REMESH_MAX * 4**k >= target)  # in integers: a ceil(log) flips on a last bit
     want = target / 4**k0
     # with uneven sizes the same h gives more triangles: scale h by the area-weighted mean density
     density = 1.0 if size is None else float(sum(e["area"] / s**2 for e, s in zip(table, size)) / area)
@@ -126,10 +140,10 @@ def _dense(solid, target, bounds, *, size=None):
         remeshed = mf.scanlike_mesh(solid, table, h, size=size)
         n = len(remeshed[1])
         k = subdivisions(n, target, bounds)
-        miss = abs(math.log(n * 4**k / target))
+        miss = ratio_off(n * 4**k, target)
         if best is None or miss < best[0]:
             best = (miss, remeshed, k, h)
-        if abs(math.log(n / want)) <= math.log(REMESH_SLACK):
+        if ratio_off(n * 4**k0, target) <= Fraction(REMESH_SLACK):
             break
         # never coarser than 2 h₀ (a quarter of the triangles: one subdivision fewer does that exactly); coarser
         # it can run away (scan20 seed 1, a 46-face blended part, at 2.3 h₀: out of 4 GiB after 20 min)
@@ -162,7 +176,8 @@ def off_part(solid, vertices) -> float:
 
 def _fine(solid, seed):
     rng = regime_rng(seed, "fine")
-    target = int(10 ** rng.uniform(*np.log10(FINE_RANGE)))
+    # math.log10, not np.log10: numpy runs AVX-512 code on AVX-512 CPUs (1.7 % of its values differ in the last bit)
+    target = int(10 ** rng.uniform(math.log10(FINE_RANGE[0]), math.log10(FINE_RANGE[1])))
     v, t, lab, _, h, remeshed = _dense(solid, target, FINE_RANGE)
     return v, t, lab, {"target": target, "h": h, "remeshed": remeshed}
 
@@ -170,7 +185,8 @@ def _fine(solid, seed):
 def _scan(solid, seed, regime):
     mf = make_fixtures()
     rng = regime_rng(seed, regime)
-    target = int(10 ** rng.uniform(*np.log10(SCAN_RANGE)))
+    # math.log10, not np.log10 (see _fine)
+    target = int(10 ** rng.uniform(math.log10(SCAN_RANGE[0]), math.log10(SCAN_RANGE[1])))
     ratio = float(rng.uniform(2, 3))  # curved faces sampled 2–3 times as densely (along an edge) as planes
     table = mf.face_table(solid)
     v, t, lab, _, h, remeshed = _dense(solid, target, SCAN_RANGE, size=np.where(_curved(table), 1.0 / ratio, 1.0))
@@ -271,7 +287,7 @@ def planar_polygons(vertices, faces, labels, planar):
             plabels.extend([fi] * len(tri))
             continue
         normal = np.cross(vertices[tri[:, 1]] - vertices[tri[:, 0]], vertices[tri[:, 2]] - vertices[tri[:, 0]]).sum(0)
-        for loop in _merge_convex(vertices, [list(map(int, x)) for x in tri], normal / np.linalg.norm(normal)):
+        for loop in _merge_convex(vertices, [list(map(int, x)) for x in tri], normal / _norm3(normal)):
             polys.append(loop)
             plabels.append(fi)
     return polys, np.array(plabels, dtype=np.int64)
@@ -314,7 +330,8 @@ def _convex(vertices, loop, normal):
     """No reflex corner (collinear boundary nodes allowed: OCC puts edge nodes on straight edges too)."""
     p = vertices[loop]
     e = np.roll(p, -1, axis=0) - p
-    turn = np.cross(e, np.roll(e, -1, axis=0)) @ normal
+    c = np.cross(e, np.roll(e, -1, axis=0))
+    turn = c[:, 0] * normal[0] + c[:, 1] * normal[1] + c[:, 2] * normal[2]  # not `@`: BLAS rounds per CPU kernel
     scale = np.linalg.norm(e, axis=1) * np.linalg.norm(np.roll(e, -1, axis=0), axis=1)
     return bool((turn > -1e-9 * scale).all())
 
