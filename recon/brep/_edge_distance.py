@@ -26,7 +26,8 @@ _EDGE_SAMPLES = 257
 
 
 def xyz(p) -> tuple[float, float, float]:
-    return (p.X(), p.Y(), p.Z())
+    """The coordinates of a ``gp_Pnt``/``gp_Vec``/``gp_Dir``/``gp_XYZ`` (one binding call, not three: the same floats)."""
+    return p.Coord()
 
 
 @dataclass
