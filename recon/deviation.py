@@ -368,7 +368,8 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
     if len(p) and count0.max() <= cap and count0.sum() <= _PAIR_BUDGET:
         best[:] = bound
         _exact_nearest(p, np.arange(len(p)), count0, best, tri, (lo, hi), centre, radius, slack,
-                       tell=lambda done: tell(done, len(p), "samples measured"))
+                       # (batches of step 1's size: progress is told at least every 15,625 samples)
+                       tell=lambda done: tell(done, len(p), "samples measured"), most=_PAIR_CHUNK // 16)
         exact[:] = True
         return best, exact
     # 1. the 16 nearest pieces settle every point near the mesh;
@@ -438,7 +439,7 @@ def _box_tree(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, list[tuple[np
     return order, levels[::-1]
 
 
-def _exact_nearest(p, idx, count, best, tri, box, centre, radius, slack, *, tell=None):
+def _exact_nearest(p, idx, count, best, tri, box, centre, radius, slack, *, tell=None, most=None):
     """Lower ``best[idx]`` to the exact distance from ``p[idx]`` to the pieces ``tri`` (centroids ``centre``,
     radii ``radius``), given that ``best`` already bounds it from above and that at most ``count`` pieces per point
     lie within ``best`` + the largest radius (batches of :data:`_PAIR_CHUNK` such pieces bound the memory).
@@ -446,7 +447,8 @@ def _exact_nearest(p, idx, count, best, tri, box, centre, radius, slack, *, tell
     The candidates come down a box hierarchy (:func:`_box_tree`): a node whose box lies farther than ``best`` (+ the
     rounding ``slack``) holds no piece that can be nearer. The pieces left are measured where their centroid bound
     also lets them beat ``best``: every piece that can reach the minimum is measured, so it is the same number as an
-    all-pairs search's. ``tell(done)``, optional, is told the points of ``idx`` done after each batch.
+    all-pairs search's. ``tell(done)``, optional, is told the points of ``idx`` done after each batch (of at most
+    ``most`` points, if given).
     """
     if not len(idx):
         return
@@ -455,6 +457,7 @@ def _exact_nearest(p, idx, count, best, tri, box, centre, radius, slack, *, tell
     s = 0
     while s < len(idx):
         e = s + max(1, int(np.searchsorted(np.cumsum(count[s:]), _PAIR_CHUNK)))
+        e = e if most is None else min(e, s + most)
         i = idx[s:e]
         s = e
         q, bound = p[i], best[i] + slack
