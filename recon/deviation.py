@@ -359,17 +359,9 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
             exact[i] = (k >= m) | (best[i] <= dk[:, -1] - reach)
             tell(s + len(i), len(idx), "samples measured")
 
-    # 0. every point's nearest centroid's piece bounds its distance; when every point's ball of that bound + reach
-    # holds at most `cap` pieces and all together at most the budget, the box hierarchy measures every point exactly
-    # (the slack: step 1's best is this bound or less, to rounding, so its counts are these or fewer)
-    _, j0 = tree.query(p, k=1)
-    bound = _point_triangle_distance(p, tri[j0])
-    count0 = cKDTree(centre, leafsize=64).query_ball_point(p, bound + reach + slack, return_length=True)
-    if len(p) and count0.max() <= cap and count0.sum() <= _PAIR_BUDGET:
-        best[:] = bound
-        _exact_nearest(p, np.arange(len(p)), count0, best, tri, (lo, hi), centre, radius, slack,
-                       # (batches of step 1's size: progress is told at least every 15,625 samples)
-                       tell=lambda done: tell(done, len(p), "samples measured"), most=_PAIR_CHUNK // 16)
+    # 0. one pass when the budgets allow (:func:`_one_pass`); else the steps below
+    if len(p) and _one_pass(p, tri, (lo, hi), centre, radius, tree, reach, slack, cap, best,
+                            lambda done: tell(done, len(p), "samples measured")):
         exact[:] = True
         return best, exact
     # 1. the 16 nearest pieces settle every point near the mesh;
@@ -395,6 +387,25 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
         if len(pending):
             measure(pending, min(m, 64, cap))
     return best, exact
+
+
+def _one_pass(p, tri, box, centre, radius, tree, reach, slack, cap, best, tell) -> bool:
+    """Step 0 of :func:`mesh_distance`: each point's nearest-centroid piece bounds its distance; when every point's
+    ball of that bound + ``reach`` holds at most ``cap`` pieces and all together at most :data:`_PAIR_BUDGET`, the box
+    hierarchy measures every point exactly into ``best`` and this returns True (else False, ``best`` untouched).
+    The slack: step 1's best is this bound or less, to rounding, so its counts are these or fewer."""
+    from scipy.spatial import cKDTree
+
+    _, j0 = tree.query(p, k=1)
+    bound = _point_triangle_distance(p, tri[j0])
+    count = cKDTree(centre, leafsize=64).query_ball_point(p, bound + reach + slack, return_length=True)
+    if count.max() > cap or count.sum() > _PAIR_BUDGET:
+        return False
+    best[:] = bound
+    # (batches of step 1's size: progress is told at least every 15,625 samples)
+    _exact_nearest(p, np.arange(len(p)), count, best, tri, box, centre, radius, slack, tell=tell,
+                   most=_PAIR_CHUNK // 16)
+    return True
 
 
 def _box_gap(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
