@@ -190,30 +190,55 @@ def _pieces(tri: np.ndarray, *, levels: int = 10) -> np.ndarray:
     times the median's side, far fewer samples need step 2's wide search. An even mesh's triangles are not cut (their
     radius is about 0.9 × that side). At most about 4 m + 10,000 pieces are made.
     """
-    def radius(t):
-        return np.linalg.norm(t - t.mean(axis=1, keepdims=True), axis=2).max(axis=1)
-
-    r = radius(tri)
+    r = _radius(tri, _centre(tri))
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
     target = max(2.0 * float(np.sqrt(np.median(area))), float(r.max()) / 2**levels)
     budget = 4 * len(tri) + 10_000
-    pieces = tri
+    # Pieces within the target are never cut again: they are set aside in batches (the input, then each round's
+    # halves), kept or dropped in place, and joined once in the same order as cutting the whole array each round.
+    batches, alive, rs = [tri], [np.ones(len(tri), dtype=bool)], [r]
+    total = len(tri)
+    active = [(0, np.flatnonzero(r > target))]  # (batch, its pieces still above the target)
     for _ in range(4 * levels):
+        top = max((float(rs[b][k].max()) for b, k in active if len(k)), default=0.0)
         # the largest first (the largest radius loosens every bound): those within 1/√2 of it, a cut's step
-        cut = r > max(target, float(r.max()) / np.sqrt(2.0))
-        if not cut.any() or len(pieces) + int(cut.sum()) > budget:
+        thr = max(target, top / np.sqrt(2.0))
+        cuts = [(b, k[rs[b][k] > thr]) for b, k in active]
+        n = sum(len(k) for _, k in cuts)
+        if not n or total + n > budget:
             break
+        for b, k in cuts:
+            alive[b][k] = False
+        big = np.concatenate([batches[b][k] for b, k in cuts])
         # the longest edge a→b of each, opposite corner c: cut at the midpoint m into (a, m, c) and (m, b, c)
-        big = pieces[cut]
         e = np.stack([np.linalg.norm(big[:, (k + 1) % 3] - big[:, k], axis=1) for k in range(3)], axis=1)
         k = np.argmax(e, axis=1)
         rows = np.arange(len(big))
         a, b, c = big[rows, k], big[rows, (k + 1) % 3], big[rows, (k + 2) % 3]
         mid = 0.5 * (a + b)
         halves = np.concatenate([np.stack((a, mid, c), axis=1), np.stack((mid, b, c), axis=1)])
-        pieces = np.concatenate([pieces[~cut], halves])
-        r = np.concatenate([r[~cut], radius(halves)])
-    return pieces
+        hr = _radius(halves, _centre(halves))
+        active = [(i, k[alive[i][k]]) for i, k in active] + [(len(batches), np.flatnonzero(hr > target))]
+        active = [(i, k) for i, k in active if len(k)]
+        batches.append(halves)
+        alive.append(np.ones(len(halves), dtype=bool))
+        rs.append(hr)
+        total += n
+    return np.concatenate([t[keep] for t, keep in zip(batches, alive)])
+
+
+def _centre(tri: np.ndarray) -> np.ndarray:
+    """The centroids of triangles ``(m, 3, 3)`` (a sum of three columns: numpy's reductions over a short middle axis
+    are several times slower)."""
+    return (tri[:, 0] + tri[:, 1] + tri[:, 2]) / 3.0
+
+
+def _radius(tri: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The largest distance from each triangle's ``centre`` to its corners."""
+    def sq(x):  # the sum in the order np.linalg.norm takes it: the same radii to the last bit
+        return x[:, 0] * x[:, 0] + x[:, 1] * x[:, 1] + x[:, 2] * x[:, 2]
+
+    return np.sqrt(np.maximum(np.maximum(sq(tri[:, 0] - centre), sq(tri[:, 1] - centre)), sq(tri[:, 2] - centre)))
 
 
 def _point_triangle_distance(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -252,7 +277,12 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
 
     Candidates come from a KD-tree on triangle centroids (the largest triangles split first, see
     :func:`_pieces`); ``r`` is the largest centroid–vertex distance, so a piece whose centroid is ``c`` away
-    is at least ``c − r`` away. (1) The 16 nearest pieces: a point is settled when its best distance is at
+    is at least ``c − r`` away. (0) Each point's nearest-centroid piece bounds its distance; when every point has at
+    most ``max_candidates`` pieces within that bound + ``r`` and all together at most :data:`_PAIR_BUDGET`, every point
+    is measured exactly in one pass down a box hierarchy (:func:`_exact_nearest`) and that is the answer: the steps
+    below would count no more pieces (their bound is no larger), so they too would measure every point exactly, and
+    the exact minimum is one number. Otherwise — samples far from the mesh — the steps below, with their budgets:
+    (1) The 16 nearest pieces: a point is settled when its best distance is at
     most ``d₁₆ − r`` — every point near the mesh, i.e. every sample of a B-rep that follows it. (2) Each other
     point is measured exactly against the pieces within ``best + r``, points with the fewest such pieces first, as
     long as a point has at most ``max_candidates`` and all together at most :data:`_PAIR_BUDGET` (of those, only
@@ -288,9 +318,10 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
     if cap < 1:
         raise InputError(f"max_candidates: expected a positive integer, got {max_candidates!r}")
     tri = _pieces(v[f])
-    centre = tri.mean(axis=1)
-    radius = np.linalg.norm(tri - centre[:, None, :], axis=2).max(axis=1)
-    lo, hi = tri.min(axis=1), tri.max(axis=1)
+    centre = _centre(tri)
+    radius = _radius(tri, centre)
+    lo = np.minimum(np.minimum(tri[:, 0], tri[:, 1]), tri[:, 2])
+    hi = np.maximum(np.maximum(tri[:, 0], tri[:, 1]), tri[:, 2])
     reach = float(radius.max())
     tree = cKDTree(centre)
     m = len(tri)
@@ -328,6 +359,11 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
             exact[i] = (k >= m) | (best[i] <= dk[:, -1] - reach)
             tell(s + len(i), len(idx), "samples measured")
 
+    # 0. one pass when the budgets allow (:func:`_one_pass`); else the steps below
+    if len(p) and _one_pass(p, tri, (lo, hi), centre, radius, tree, reach, slack, cap, best,
+                            lambda done: tell(done, len(p), "samples measured")):
+        exact[:] = True
+        return best, exact
     # 1. the 16 nearest pieces settle every point near the mesh;
     measure(np.arange(len(p)), min(16, m))
     # 2. the others: every piece within best + reach, nearest-first by that count, within the budgets;
@@ -343,13 +379,33 @@ def mesh_distance(vertices, faces, points, *, max_candidates: int | None = None,
         # Measured as if every piece within best + reach were (the budgets keep that cost), but the pieces are
         # looked up by size class, small first: a small piece is only a candidate within best + its radius.
         # (told in sample-triangle pairs: the batches hold equal numbers of them, and take equal times)
-        _exact_nearest(p, take, count[ok], best, tri, centre, radius, slack,
-                       tell=lambda done, total: tell(done, total, "far samples' triangles measured"))
+        pairs = np.cumsum(count[ok])
+        _exact_nearest(p, take, count[ok], best, tri, (lo, hi), centre, radius, slack,
+                       tell=lambda done: tell(int(pairs[done - 1]), int(pairs[-1]), "far samples' triangles measured"))
         exact[take] = True
         # 3. past the budget: the nearest few pieces give an upper bound (exact only if certified).
         if len(pending):
             measure(pending, min(m, 64, cap))
     return best, exact
+
+
+def _one_pass(p, tri, box, centre, radius, tree, reach, slack, cap, best, tell) -> bool:
+    """Step 0 of :func:`mesh_distance`: each point's nearest-centroid piece bounds its distance; when every point's
+    ball of that bound + ``reach`` holds at most ``cap`` pieces and all together at most :data:`_PAIR_BUDGET`, the box
+    hierarchy measures every point exactly into ``best`` and this returns True (else False, ``best`` untouched).
+    The slack: step 1's best is this bound or less, to rounding, so its counts are these or fewer."""
+    from scipy.spatial import cKDTree
+
+    _, j0 = tree.query(p, k=1)
+    bound = _point_triangle_distance(p, tri[j0])
+    count = cKDTree(centre, leafsize=64).query_ball_point(p, bound + reach + slack, return_length=True)
+    if count.max() > cap or count.sum() > _PAIR_BUDGET:
+        return False
+    best[:] = bound
+    # (batches of step 1's size: progress is told at least every 15,625 samples)
+    _exact_nearest(p, np.arange(len(p)), count, best, tri, box, centre, radius, slack, tell=tell,
+                   most=_PAIR_CHUNK // 16)
+    return True
 
 
 def _box_gap(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -359,16 +415,19 @@ def _box_gap(p: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", gap, gap))
 
 
-def _box_tree(tri: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
-    """A bounding-box hierarchy of the pieces ``tri`` (m, 3, 3), split at the median of their box centres along the
+def _box_tree(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """A bounding-box hierarchy of the pieces with boxes ``lo``–``hi`` (m, 3), split at the median of their box centres along the
     longest side, level by level: ``(order, levels)``, per level of a complete binary tree (root first) the boxes
     ``(lo, hi)`` of its nodes; node ``k`` of the last level is piece ``order[k]``, or an empty box where ``order[k]``
     is -1. A node's box is the exact union (min, max) of its children's: its distance to a point is never more than
     theirs, so a node farther than a bound holds no piece within it."""
-    lo, hi = tri.min(axis=1), tri.max(axis=1)
     mid = 0.5 * (lo + hi)
-    m = len(tri)
+    m = len(lo)
     depth = max(0, int(m - 1).bit_length())
+    # each piece's rank along each axis: a level's sort is then one integer key (node, rank), not a lexsort of two
+    rank = np.empty((3, m), dtype=np.int64)
+    for a in range(3):
+        rank[a, np.argsort(mid[:, a], kind="stable")] = np.arange(m)
     perm = np.arange(m)
     for level in range(depth):  # node k of this level holds perm[(k·m) >> level : ((k+1)·m) >> level]
         edges = (np.arange((1 << level) + 1) * m) >> level
@@ -378,7 +437,7 @@ def _box_tree(tri: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.nd
         ext = np.maximum.reduceat(c, first) - np.minimum.reduceat(c, first)
         axis = np.zeros(1 << level, dtype=np.int64)
         axis[np.diff(edges) > 0] = np.argmax(ext, axis=1)
-        perm = perm[np.lexsort((c[np.arange(m), axis[node]], node))]
+        perm = perm[np.argsort((node << 32) | rank[axis[node], perm])]
     edges = (np.arange((1 << depth) + 1) * m) >> depth
     order = np.full(1 << depth, -1, dtype=np.int64)
     order[np.diff(edges) > 0] = perm
@@ -391,7 +450,7 @@ def _box_tree(tri: np.ndarray) -> tuple[np.ndarray, list[tuple[np.ndarray, np.nd
     return order, levels[::-1]
 
 
-def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, tell=None):
+def _exact_nearest(p, idx, count, best, tri, box, centre, radius, slack, *, tell=None, most=None):
     """Lower ``best[idx]`` to the exact distance from ``p[idx]`` to the pieces ``tri`` (centroids ``centre``,
     radii ``radius``), given that ``best`` already bounds it from above and that at most ``count`` pieces per point
     lie within ``best`` + the largest radius (batches of :data:`_PAIR_CHUNK` such pieces bound the memory).
@@ -399,24 +458,26 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, tell=None
     The candidates come down a box hierarchy (:func:`_box_tree`): a node whose box lies farther than ``best`` (+ the
     rounding ``slack``) holds no piece that can be nearer. The pieces left are measured where their centroid bound
     also lets them beat ``best``: every piece that can reach the minimum is measured, so it is the same number as an
-    all-pairs search's. ``tell(done, total)``, optional, is told the pairs (point, piece within its ball) done, of
-    ``sum(count)``.
+    all-pairs search's. ``tell(done)``, optional, is told the points of ``idx`` done after each batch (of at most
+    ``most`` points, if given).
     """
     if not len(idx):
         return
-    order, levels = _box_tree(tri)
-    pairs = np.cumsum(count)
+    order, levels = _box_tree(*box)
+    pairs_of = [(lo.reshape(-1, 2, 3), hi.reshape(-1, 2, 3)) for lo, hi in levels[1:]]
     s = 0
     while s < len(idx):
         e = s + max(1, int(np.searchsorted(np.cumsum(count[s:]), _PAIR_CHUNK)))
+        e = e if most is None else min(e, s + most)
         i = idx[s:e]
         s = e
         q, bound = p[i], best[i] + slack
         rows, node = np.arange(len(i)), np.zeros(len(i), dtype=np.int64)
-        for lo, hi in levels[1:]:  # (a child's box: the parent's within the bound, its own tested)
-            rows, node = np.repeat(rows, 2), (2 * np.repeat(node, 2) + np.tile([0, 1], len(node)))
-            keep = _box_gap(q[rows], lo[node], hi[node]) <= bound[rows]
-            rows, node = rows[keep], node[keep]
+        for lo, hi in pairs_of:  # (a node's two children's boxes, tested together; squared: no root per box)
+            at = q[rows][:, None, :]
+            gap = np.maximum(np.maximum(lo[node] - at, at - hi[node]), 0.0)
+            r, c = np.nonzero(np.einsum("ijk,ijk->ij", gap, gap) <= (bound * bound)[rows][:, None])
+            rows, node = rows[r], 2 * node[r] + c
         cols = order[node]
         near = np.linalg.norm(q[rows] - centre[cols], axis=1) - radius[cols] <= bound[rows]
         rows, cols = rows[near], cols[near]
@@ -424,7 +485,7 @@ def _exact_nearest(p, idx, count, best, tri, centre, radius, slack, *, tell=None
         np.minimum.at(sub, rows, _point_triangle_distance(q[rows], tri[cols]))
         best[i] = sub
         if tell is not None:
-            tell(int(pairs[s - 1]), int(pairs[-1]))
+            tell(s)
 
 
 def deviation(mesh_vertices: npt.ArrayLike, mesh_faces: npt.ArrayLike, shape_or_step_path: object, *,

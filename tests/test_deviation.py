@@ -515,3 +515,20 @@ def test_mesh_distance_is_the_all_pairs_minimum_to_the_last_bit(seed):
     want = np.array([dev._point_triangle_distance(np.repeat(q[None], len(pieces), 0), pieces).min() for q in pts])
     assert exact.all()
     assert np.array_equal(got, want)
+
+
+def test_mesh_distance_one_pass_and_stepwise_paths_agree_to_the_last_bit():
+    """Within the budgets every sample is measured in one pass down the box hierarchy; past them (a cap of one piece
+    here) the stepwise path runs. Wherever the stepwise path calls a distance exact it is the same float as the one
+    pass's, near the slivers and a few diagonals away: the two paths are one minimum, found two ways."""
+    from recon.deviation import mesh_distance
+
+    v, f = _sliver_box_beside_a_fine_one()
+    rng = np.random.default_rng(13)
+    points = np.vstack([rng.uniform((-22, -3, -3), (24, 3, 3), (300, 3)), rng.uniform(-80, 80, (100, 3))])
+    one, exact_one = mesh_distance(v, f, points)
+    step, exact_step = mesh_distance(v, f, points, max_candidates=1)
+    assert exact_one.all()
+    assert 0 < exact_step.sum() < len(points)  # both of the stepwise path's outcomes are exercised
+    assert np.array_equal(one[exact_step], step[exact_step])
+    assert np.all(step[~exact_step] >= one[~exact_step])  # the others are upper bounds

@@ -238,13 +238,13 @@ class BrepDistance:
                       fd.index, fd.kind, len(fd.uv))
             return
         trsf = loc.Transformation()
-        nodes = []
-        for i in range(1, tri.NbNodes() + 1):
-            p = tri.Node(i).Transformed(trsf)
-            nodes.append(_xyz(p))
+        count = range(1, tri.NbNodes() + 1)
+        # (gp_Pnt.Transform leaves a point as it is under the identity: skipping it is the same numbers)
+        nodes = ([tri.Node(i).Coord() for i in count] if loc.IsIdentity()
+                 else [tri.Node(i).Transformed(trsf).Coord() for i in count])
         fd.nodes = np.asarray(nodes)
         if tri.HasUVNodes():
-            fd.uv = np.array([(tri.UVNode(i).X(), tri.UVNode(i).Y()) for i in range(1, tri.NbNodes() + 1)])
+            fd.uv = np.array([tri.UVNode(i).Coord() for i in count])
         else:
             fd.uv = np.zeros((len(nodes), 2))
         fd.tris = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)], dtype=np.int64) - 1
@@ -662,4 +662,5 @@ class BrepDistance:
 
 
 def _xy(p2) -> tuple[float, float]:
-    return (p2.X(), p2.Y())
+    """The coordinates of a ``gp_Pnt2d`` (one binding call, not two: the same floats)."""
+    return p2.Coord()

@@ -26,7 +26,8 @@ _EDGE_SAMPLES = 257
 
 
 def xyz(p) -> tuple[float, float, float]:
-    return (p.X(), p.Y(), p.Z())
+    """The coordinates of a ``gp_Pnt``/``gp_Vec``/``gp_Dir``/``gp_XYZ`` (one binding call, not three: the same floats)."""
+    return p.Coord()
 
 
 @dataclass
@@ -35,9 +36,9 @@ class EdgeSamples:
 
     curve: BRepAdaptor_Curve
     is_line: bool
-    points: np.ndarray  # (q, 3) on the curve
+    points: np.ndarray  # (q, 3) on the curve at ``params`` (a circle: its two ends only)
     params: np.ndarray  # (q,)
-    sagitta: float = 0.0  # bound on the gap between the polyline and the curve
+    sagitta: float = 0.0  # bound on the gap between the polyline and the curve (0 for a circle: not used)
     closed: bool = False
     circle: tuple = ()  # (centre, x, y, radius) for circular edges: solved in closed form
 
@@ -47,18 +48,22 @@ def edge_samples(edge, diagonal: float) -> EdgeSamples:
     curve = BRepAdaptor_Curve(edge)
     is_line = curve.GetType() == GeomAbs_CurveType.GeomAbs_Line
     t = np.linspace(curve.FirstParameter(), curve.LastParameter(), 2 if is_line else _EDGE_SAMPLES)
-    pts = np.array([xyz(curve.Value(ti)) for ti in t])
-    sag = 0.0
-    if not is_line:
-        mid = np.array([xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
-        sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
-    closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * diagonal)
     circle = ()
     if curve.GetType() == GeomAbs_CurveType.GeomAbs_Circle:
         circ = curve.Circle()
         ax = circ.Position()
         circle = tuple(np.array(xyz(v)) for v in (ax.Location(), ax.XDirection(), ax.YDirection()))
         circle += (circ.Radius(),)
+        # measured in closed form from its ends' parameters (:func:`_arc_distance`): only its ends are evaluated
+        ends = np.array([xyz(curve.Value(t[0])), xyz(curve.Value(t[-1]))])
+        closed = bool(np.linalg.norm(ends[0] - ends[-1]) <= 1e-9 * diagonal)
+        return EdgeSamples(curve=curve, is_line=False, points=ends, params=t, closed=closed, circle=circle)
+    pts = np.array([xyz(curve.Value(ti)) for ti in t])
+    sag = 0.0
+    if not is_line:
+        mid = np.array([xyz(curve.Value(ti)) for ti in 0.5 * (t[1:] + t[:-1])])
+        sag = 2.0 * float(np.linalg.norm(mid - 0.5 * (pts[1:] + pts[:-1]), axis=1).max())
+    closed = bool(np.linalg.norm(pts[0] - pts[-1]) <= 1e-9 * diagonal)
     return EdgeSamples(curve=curve, is_line=is_line, points=pts, params=t, sagitta=sag, closed=closed, circle=circle)
 
 
