@@ -492,10 +492,15 @@ def _most_ruled(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps:
 
 
 def _band_fits(at: _Atoms, tris: np.ndarray, eps: Tol, sag: float) -> list[SurfaceFit]:
-    """The surfaces of one band of a split torus: the curved types that hold its vertices to round-off (two coaxial
-    circles lie on a cone, a sphere and a torus), those its strips' edges lie on first."""
+    """The surfaces of one band of a split torus: its plane when flat (an annulus), else the curved types that hold
+    its vertices to round-off (two coaxial circles lie on a cone, a sphere and a torus), those its strips' edges lie
+    on first."""
     V, F = at.mesh.vertices, at.mesh.faces
-    fits = list(_asked(at, np.unique(F[tris]), tris, eps, sag, first=False))
+    ids = np.unique(F[tris])
+    flat = fit_plane(V[ids], tolerance=_floor(eps))
+    if flat and np.abs(flat.distance(V[ids])).max() <= _floor(eps):
+        return [flat]
+    fits = list(_asked(at, ids, tris, eps, sag, first=False))
     return sorted(fits, key=lambda f: -_on_chords(f, V, F, tris, _floor(eps)))
 
 
@@ -726,7 +731,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         return None
     # two bands a torus holds whatever they are (one face or two), and a flat ring on a torus to round-off: the
     # surfaces are right either way, only the count is open
-    labels, fits, split = split_undrawn_tori(V, F, labels, fits, eps, lambda tris: _band_fits(at, tris, eps, sag))
+    labels, fits, split = split_undrawn_tori(V, F, labels, fits, eps, pairs, lambda tris: _band_fits(at, tris, eps, sag))
     if split:
         notes.append(f"{split} torus face(s) on three rings split into their two bands: the export's own sections "
                      "are finer than that torus's meridian would be")
