@@ -731,13 +731,15 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         return None
     # two bands a torus holds whatever they are (one face or two), and a flat ring on a torus to round-off: the
     # surfaces are right either way, only the count is open
-    labels, fits, split = split_undrawn_tori(V, F, labels, fits, eps, pairs, lambda tris: _band_fits(at, tris, eps, sag))
+    ends = np.asarray(mesh.face_adjacency_edges).reshape(-1, 2)
+    labels, fits, split, smooth = split_undrawn_tori(V, F, labels, fits, eps, pairs, ends,
+                                                     lambda tris: _band_fits(at, tris, eps, sag))
     if split:
         notes.append(f"{split} torus face(s) on three rings split into their two bands: the export's own sections "
                      "are finer than that torus's meridian would be")
-    rings = three_ring_tori(V, F, labels, fits, eps, pairs, np.asarray(mesh.face_adjacency_edges).reshape(-1, 2))
+    rings = three_ring_tori(V, F, labels, fits, eps, pairs, ends)
     flat = flat_rings(V, F, labels, fits, atoms, eps)
-    return ExactFaces(labels, fits, notes + kinks, [n for n in (rings, flat) if n])
+    return ExactFaces(labels, fits, notes + kinks, [n for n in (smooth, rings, flat) if n])
 
 
 def _relabelled(labels: np.ndarray, fits: dict, whole: list) -> tuple[np.ndarray, dict]:

@@ -70,6 +70,22 @@ def _meridian(fit, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, flo
     return None
 
 
+def _frame(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(a, e1)
+
+
+def _section_step(w: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
+    """The angle one section of a ring would span with one section fewer: the ring's points ``w`` (relative to a point
+    of its axis, ``e1``, ``e2`` across it); a full circle's sections are its points, an arc's one fewer, over the arc
+    (its largest gap left out)."""
+    around = np.sort(np.arctan2(w @ e2, w @ e1))
+    gaps = np.diff(np.r_[around, around[0] + 2 * np.pi])
+    whole = gaps.max() < 1.5 * np.median(gaps)
+    return float(2 * np.pi / (len(w) - 1) if whole else (2 * np.pi - gaps.max()) / max(len(w) - 2, 1))
+
+
 def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarray]:
     """Whether the exporter cannot have drawn the surface of revolution ``meridian`` (:func:`_meridian`) with the
     points ``P`` on the rings ``ring`` (0 … k − 1) as its sections (module doc); and the rings in their order along the
@@ -78,9 +94,7 @@ def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarra
     w = P - c
     h = w @ a
     rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
-    e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(a, e1)
+    e1, e2 = _frame(a)
     k = int(ring.max()) + 1
     psi, bounds = np.empty(k), []
     for q in range(k):
@@ -88,11 +102,7 @@ def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarra
         if on.sum() < 3:
             return False, np.arange(k)
         psi[q] = np.arctan2(h[on].mean(), rho[on].mean() - R)  # where the ring sits on the meridian circle
-        around = np.sort(np.arctan2(w[on] @ e2, w[on] @ e1))
-        gaps = np.diff(np.r_[around, around[0] + 2 * np.pi])
-        # a full circle's sections are its points; an arc's one fewer, over the arc (its largest gap left out)
-        whole = gaps.max() < 1.5 * np.median(gaps)
-        step = 2 * np.pi / (on.sum() - 1) if whole else (2 * np.pi - gaps.max()) / (on.sum() - 2)
+        step = _section_step(w[on], e1, e2)
         bounds.append((step, rho[on].mean() * (1 - np.cos(step / 2))))
     order = np.argsort(psi)
     gaps = np.diff(np.r_[psi[order], psi[order[0]] + 2 * np.pi])
@@ -128,13 +138,14 @@ def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends
 
 
 def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float, pairs: np.ndarray,
-                       band_fits) -> tuple[np.ndarray, dict, int]:
+                       ends: np.ndarray, band_fits) -> tuple[np.ndarray, dict, int, str]:
     """``(labels, fits, n)``: every torus face on three vertex rings that its exporter cannot have drawn so
     (:func:`_undrawn`) split into its two bands, each with the first of ``band_fits(triangles)`` (the surfaces that
     hold them, best first) the exporter can have drawn (None left: the torus stays), or given the one band surface
     that holds all three rings; a band joins a neighbour (``pairs``: the mesh's adjacent triangles) whose surface
-    holds it and whose vertices its own surface holds (the rest of one cone). ``n`` the tori split."""
-    labels, fits, n = labels.copy(), dict(fits), 0
+    holds it and whose vertices its own surface holds (the rest of one cone). ``n`` the tori split; a note when a band
+    meets a neighbour as smoothly as one face's sections may turn (:func:`_smooth_join`): the count is then open."""
+    labels, fits, n, smooth = labels.copy(), dict(fits), 0, 0
     for p in [p for p, f in fits.items() if f.type == "torus"]:
         tris = np.flatnonzero(labels == p)
         ids, local = np.unique(F[tris], return_inverse=True)
@@ -166,8 +177,31 @@ def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: d
         n += 1
         for q in (p, len(fits) - 1):
             _join_alike(V, F, labels, fits, q, pairs, RING_SPREAD * eps)
+            smooth += _smooth_join(V, labels, fits, q, pairs, ends, torus[0], torus[1])
     used, labels = np.unique(labels, return_inverse=True)
-    return labels.astype(np.int64), {i: fits[int(q)] for i, q in enumerate(used)}, n
+    note = (f"face count not proven: {smooth} band(s) of a split torus meet a neighbour no more sharply than one "
+            "face's sections may turn (a surface of revolution drawn in rings, or two faces)") if smooth else ""
+    return labels.astype(np.int64), {i: fits[int(q)] for i, q in enumerate(used)}, n, note
+
+
+def _smooth_join(V: np.ndarray, labels: np.ndarray, fits: dict, q: int, pairs: np.ndarray, ends: np.ndarray,
+                 center: np.ndarray, axis: np.ndarray) -> bool:
+    """Whether face ``q`` meets a neighbour along a ring about ``axis`` with the two surfaces' normals turning by no
+    more than :data:`UNDRAWN_MARGIN` sections of that ring: one face's meridian drawn in rings turns so much between
+    them (a cone stack for a curved profile), so the two may be one face."""
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    e1, e2 = _frame(axis)
+    for r in np.unique(np.r_[b[a == q], a[b == q]]):
+        if int(r) == q:
+            continue
+        shared = np.unique(ends[((a == q) & (b == r)) | ((a == r) & (b == q))])
+        if len(shared) < 3:
+            continue
+        turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[q], V[shared]),
+                                                  surface_normals(fits[int(r)], V[shared]))), 0.0, 1.0))
+        if np.median(turn) <= UNDRAWN_MARGIN * _section_step(V[shared] - center, e1, e2):
+            return True
+    return False
 
 
 def _join_alike(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, q: int, pairs: np.ndarray,
