@@ -32,7 +32,7 @@ from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
-from ._exact_rings import flat_rings, three_ring_tori
+from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 from ._exact_turn import drawn_alike, largest_turn
@@ -480,10 +480,28 @@ def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) 
     fits = _asked(at, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
         return fits[0], ""
-    rank = [(-_on_chords(f, V, F, tris, _floor(eps)), i) for i, f in enumerate(fits)]
-    best = fits[min(rank)[1]]
+    best, on = _most_ruled(fits, V, F, tris, eps)
     return best, (f"{best.type} chosen among {', '.join(f.type for f in fits)} that all hold its {len(ids)} vertices "
-                  f"to round-off ({-min(rank)[0]} edges on it)")
+                  f"to round-off ({on} edges on it)")
+
+
+def _most_ruled(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: Tol) -> tuple[SurfaceFit, int]:
+    """The fit with the most of the triangles' edges on it (rulings), the simplest of equals; and that count."""
+    rank = [(-_on_chords(f, V, F, tris, _floor(eps)), i) for i, f in enumerate(fits)]
+    return fits[min(rank)[1]], -min(rank)[0]
+
+
+def _band_fits(at: _Atoms, tris: np.ndarray, eps: Tol, sag: float) -> list[SurfaceFit]:
+    """The surfaces of one band of a split torus: its plane when flat (an annulus), else the curved types that hold
+    its vertices to round-off (two coaxial circles lie on a cone, a sphere and a torus), those its strips' edges lie
+    on first."""
+    V, F = at.mesh.vertices, at.mesh.faces
+    ids = np.unique(F[tris])
+    flat = fit_plane(V[ids], tolerance=_floor(eps))
+    if flat and np.abs(flat.distance(V[ids])).max() <= _floor(eps):
+        return [flat]
+    fits = list(_asked(at, ids, tris, eps, sag, first=False))
+    return sorted(fits, key=lambda f: -_on_chords(f, V, F, tris, _floor(eps)))
 
 
 def _crease_free(mesh: Mesh, cos_crease: float) -> np.ndarray:
@@ -713,9 +731,15 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
         return None
     # two bands a torus holds whatever they are (one face or two), and a flat ring on a torus to round-off: the
     # surfaces are right either way, only the count is open
-    rings = three_ring_tori(V, F, labels, fits, eps, pairs, np.asarray(mesh.face_adjacency_edges).reshape(-1, 2))
+    ends = np.asarray(mesh.face_adjacency_edges).reshape(-1, 2)
+    labels, fits, split, smooth = split_undrawn_tori(V, F, labels, fits, eps, pairs, ends,
+                                                     lambda tris: _band_fits(at, tris, eps, sag))
+    if split:
+        notes.append(f"{split} torus face(s) on three rings split into their two bands: the export's own sections "
+                     "are finer than that torus's meridian would be")
+    rings = three_ring_tori(V, F, labels, fits, eps, pairs, ends)
     flat = flat_rings(V, F, labels, fits, atoms, eps)
-    return ExactFaces(labels, fits, notes + kinks, [n for n in (rings, flat) if n])
+    return ExactFaces(labels, fits, notes + kinks, [n for n in (smooth, rings, flat) if n])
 
 
 def _relabelled(labels: np.ndarray, fits: dict, whole: list) -> tuple[np.ndarray, dict]:
