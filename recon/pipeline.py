@@ -11,6 +11,7 @@ import os
 import time
 from collections import Counter
 from dataclasses import dataclass, field, replace
+from functools import partial
 from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
@@ -123,9 +124,7 @@ def convert(
     -------
     Conversion
     """
-    def step(name, frac):
-        if progress is not None:
-            progress(name, frac)
+    step = partial(_tell, progress)
 
     times: dict[str, float] = {}
     t = time.perf_counter()
@@ -155,6 +154,12 @@ def convert(
     return replace(result, extra=_note_mesh_changes(result.report, user, spikes, holes, work))
 
 
+def _tell(progress: Progress | None, stage: str, frac: float) -> None:
+    """``progress(stage, frac)`` when there is a progress callback."""
+    if progress is not None:
+        progress(stage, frac)
+
+
 @dataclass
 class _Run:
     """The stages after the decomposition (fit, brep, deviation, report) for one candidate set of faces."""
@@ -174,8 +179,7 @@ class _Run:
         return lambda done, total, what: progress(name, Count(done, total, what)) if 0 < done < total else None
 
     def _step(self, name, frac):
-        if self.progress is not None:
-            self.progress(name, frac)
+        _tell(self.progress, name, frac)
 
     def finish(self, found, dec: Decomposition | None, work=None) -> Conversion:
         """The conversion from the exact faces ``found`` or else the decomposition ``dec`` (of the working copy

@@ -271,9 +271,8 @@ def fit_exact_bspline(points: np.ndarray, normals: np.ndarray, faces: np.ndarray
     if not bare.ok:
         return bare
     pts, nrm, split, lifts = chord_guides(points, normals, faces)
-    surface = BSplineSurface.from_params(bare.params)
     reach = tolerance + np.abs(lifts)
-    if np.mean(np.abs(surface.distance(pts[len(points):])) <= reach) >= GUIDES_AGREE:
+    if np.mean(np.abs(bare.distance(pts[len(points):])) <= reach) >= GUIDES_AGREE:
         return bare
     weights = np.minimum(1.0, (tolerance / np.maximum(np.abs(lifts), 1e-300)) ** 2)
     guided = fit_bspline_surface(pts, nrm, faces=split, tolerance=tolerance, exact=True, guide_weights=weights)

@@ -480,15 +480,15 @@ def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) 
     fits = _asked(at, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
         return fits[0], ""
-    best, on = _most_ruled(fits, V, F, tris, eps)
+    on, best = _by_rulings(fits, V, F, tris, eps)[0]
     return best, (f"{best.type} chosen among {', '.join(f.type for f in fits)} that all hold its {len(ids)} vertices "
                   f"to round-off ({on} edges on it)")
 
 
-def _most_ruled(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: Tol) -> tuple[SurfaceFit, int]:
-    """The fit with the most of the triangles' edges on it (rulings), the simplest of equals; and that count."""
-    rank = [(-_on_chords(f, V, F, tris, _floor(eps)), i) for i, f in enumerate(fits)]
-    return fits[min(rank)[1]], -min(rank)[0]
+def _by_rulings(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: Tol) -> list[tuple[int, SurfaceFit]]:
+    """``(edges on it, fit)`` for each fit, the most of the triangles' edges on it (rulings) first, the simplest of
+    equals first (``fits`` come simplest first)."""
+    return sorted(((_on_chords(f, V, F, tris, _floor(eps)), f) for f in fits), key=lambda x: -x[0])
 
 
 def _band_fits(at: _Atoms, tris: np.ndarray, eps: Tol, sag: float) -> list[SurfaceFit]:
@@ -500,8 +500,7 @@ def _band_fits(at: _Atoms, tris: np.ndarray, eps: Tol, sag: float) -> list[Surfa
     flat = fit_plane(V[ids], tolerance=_floor(eps))
     if flat and np.abs(flat.distance(V[ids])).max() <= _floor(eps):
         return [flat]
-    fits = list(_asked(at, ids, tris, eps, sag, first=False))
-    return sorted(fits, key=lambda f: -_on_chords(f, V, F, tris, _floor(eps)))
+    return [f for _, f in _by_rulings(list(_asked(at, ids, tris, eps, sag, first=False)), V, F, tris, eps)]
 
 
 def _crease_free(mesh: Mesh, cos_crease: float) -> np.ndarray:

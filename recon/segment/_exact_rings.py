@@ -38,13 +38,17 @@ __all__ = ["RING_SPREAD", "flat_rings", "split_undrawn_tori", "three_ring_tori"]
 RING_SPREAD = 10.0
 
 
+def _height_radius(V: np.ndarray, center: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's height along the axis through ``center`` along ``axis`` and its distance from it."""
+    w = V - center
+    h = w @ axis
+    return h, np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+
+
 def _ring_ids(V: np.ndarray, center: np.ndarray, axis: np.ndarray, spread: float) -> np.ndarray:
     """The ring of each of the points ``V`` about the axis through ``center`` along ``axis`` (0, 1, …): points whose
     (height, radius) lie within ``spread`` of each other, chained."""
-    w = V - center
-    h = w @ axis
-    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
-    hr = np.c_[h, rho]
+    hr = np.c_[_height_radius(V, center, axis)]
     ab = cKDTree(hr).query_pairs(spread, output_type="ndarray")
     return np.unique(components(len(hr), ab[:, 0], ab[:, 1], np.ones(len(hr), bool)), return_inverse=True)[1]
 
@@ -92,8 +96,7 @@ def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarra
     meridian arc the points span."""
     c, a, R, r = meridian
     w = P - c
-    h = w @ a
-    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+    h, rho = _height_radius(P, c, a)
     e1, e2 = _frame(a)
     k = int(ring.max()) + 1
     psi, bounds = np.empty(k), []
@@ -139,11 +142,11 @@ def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends
 
 def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float, pairs: np.ndarray,
                        ends: np.ndarray, band_fits) -> tuple[np.ndarray, dict, int, str]:
-    """``(labels, fits, n)``: every torus face on three vertex rings that its exporter cannot have drawn so
+    """``(labels, fits, n, note)``: every torus face on three vertex rings that its exporter cannot have drawn so
     (:func:`_undrawn`) split into its two bands, each with the first of ``band_fits(triangles)`` (the surfaces that
     hold them, best first) the exporter can have drawn (None left: the torus stays), or given the one band surface
     that holds all three rings; a band joins a neighbour (``pairs``: the mesh's adjacent triangles) whose surface
-    holds it and whose vertices its own surface holds (the rest of one cone). ``n`` the tori split; a note when a band
+    holds it and whose vertices its own surface holds (the rest of one cone). ``n`` the tori split; ``note`` when a band
     meets a neighbour as smoothly as one face's sections may turn (:func:`_smooth_join`): the count is then open."""
     labels, fits, n, smooth = labels.copy(), dict(fits), 0, 0
     for p in [p for p, f in fits.items() if f.type == "torus"]:
@@ -184,6 +187,12 @@ def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: d
     return labels.astype(np.int64), {i: fits[int(q)] for i, q in enumerate(used)}, n, note
 
 
+def _neighbours(labels: np.ndarray, pairs: np.ndarray, q: int) -> list[int]:
+    """The faces sharing an edge with face ``q`` (``pairs``: the mesh's adjacent triangles)."""
+    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
+    return [int(r) for r in np.unique(np.r_[b[a == q], a[b == q]]) if r != q]
+
+
 def _smooth_join(V: np.ndarray, labels: np.ndarray, fits: dict, q: int, pairs: np.ndarray, ends: np.ndarray,
                  center: np.ndarray, axis: np.ndarray) -> bool:
     """Whether face ``q`` meets a neighbour along a ring about ``axis`` with the two surfaces' normals turning by no
@@ -191,14 +200,12 @@ def _smooth_join(V: np.ndarray, labels: np.ndarray, fits: dict, q: int, pairs: n
     them (a cone stack for a curved profile), so the two may be one face."""
     a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
     e1, e2 = _frame(axis)
-    for r in np.unique(np.r_[b[a == q], a[b == q]]):
-        if int(r) == q:
-            continue
+    for r in _neighbours(labels, pairs, q):
         shared = np.unique(ends[((a == q) & (b == r)) | ((a == r) & (b == q))])
         if len(shared) < 3:
             continue
         turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[q], V[shared]),
-                                                  surface_normals(fits[int(r)], V[shared]))), 0.0, 1.0))
+                                                  surface_normals(fits[r], V[shared]))), 0.0, 1.0))
         if np.median(turn) <= UNDRAWN_MARGIN * _section_step(V[shared] - center, e1, e2):
             return True
     return False
@@ -208,11 +215,9 @@ def _join_alike(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, q:
                 spread: float) -> None:
     """Face ``q`` relabelled (in place) as the first neighbour of its type whose surface holds its vertices within
     ``spread`` and whose vertices its own surface holds: two pieces of one surface."""
-    a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
     mine = np.unique(F[labels == q])
-    for r in np.unique(np.r_[b[a == q], a[b == q]]):
-        r = int(r)
-        if r == q or fits[r].type != fits[q].type:
+    for r in _neighbours(labels, pairs, q):
+        if fits[r].type != fits[q].type:
             continue
         theirs = np.unique(F[labels == r])
         if np.abs(fits[r].distance(V[mine])).max() <= spread and np.abs(fits[q].distance(V[theirs])).max() <= spread:
@@ -248,9 +253,7 @@ def flat_rings(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, ato
             tris = order[bounds[q]:bounds[q + 1]]
             if not (labels[tris] == p).all():
                 continue
-            w = V[np.unique(F[tris])] - c
-            h = w @ a
-            rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
+            h, rho = _height_radius(V[np.unique(F[tris])], c, a)
             # one height to the vertices' round-off (each within eps); mirrored radii to theirs too
             found += bool(np.ptp(h) <= 2 * eps and abs(rho.min() + rho.max() - 2 * f.params["major_radius"]) > 2 * eps)
     if not found:
