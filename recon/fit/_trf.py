@@ -299,6 +299,11 @@ def lm_plain(fun, jac, x0, max_nfev: int, ftol=1e-8, xtol=1e-8, gtol=1e-8):
     """
     from scipy.optimize import _minpack  # here: scipy.optimize is 0.1 s of start-up the trust-region loop never uses
 
+    if not callable(getattr(_minpack, "_lmder", None)):  # a private call: a scipy without it gets the public one
+        from scipy.optimize import least_squares
+
+        res = least_squares(fun, x0, jac=jac, method="lm", x_scale="jac", max_nfev=max_nfev)
+        return TrfResult(res.x, res.fun, res.cost, res.nfev, res.njev, res.status)
     x0 = np.atleast_1d(x0).astype(float)
     f0 = np.atleast_1d(fun(x0))
     if not np.all(np.isfinite(f0)):
