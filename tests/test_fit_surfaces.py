@@ -670,6 +670,67 @@ def test_a_narrow_exact_torus_patch_the_budget_stops_short_of_is_continued_to_it
     assert fit.deviation["max"] <= eps
 
 
+def _narrow_torus_patch(big, small, phi, theta, shift):
+    """float32 vertices of a torus patch at the angles (phi, theta), with normals from their own Delaunay triangles."""
+    from scipy.spatial import Delaunay
+
+    from recon.segment._context import own_normals
+
+    pts = np.c_[(big + small * np.cos(theta)) * np.cos(phi), (big + small * np.cos(theta)) * np.sin(phi),
+                small * np.sin(theta)] + shift
+    pts = pts.astype(np.float32).astype(float)
+    tri = Delaunay(np.c_[phi, theta]).simplices
+    return pts, own_normals(pts, tri, tri, len(pts))
+
+
+@pytest.mark.parametrize("shift", [(0.0, 0.0, 33.0), (0.0, 0.0, 0.5)])
+@pytest.mark.parametrize("rows", [3, 4])
+def test_the_exact_continuation_loop_is_least_squares_lm_bit_for_bit(monkeypatch, rows, shift):
+    """Differential: ``fit_torus(exact=True)``'s continuation through MINPACK directly (``recon.fit._trf.lm_plain``)
+    against the public ``least_squares(method="lm")`` it stands for, on narrow patches (float32 vertices, as the
+    exact path fits them) whose refinement budget stops short of the torus: the same fit, float for float."""
+    import recon.fit._primitives as prim
+
+    phi, theta = (a.ravel() for a in np.meshgrid(np.linspace(0.3, 0.5, 5), np.linspace(0.1, 1.3, rows)))
+    pts, nrm = _narrow_torus_patch(15.81, 2.545, phi, theta, np.array(shift))
+    eps = 2e-6 * np.abs(pts).max()  # float32 round-off of the coordinates, with margin (recon.segment.roundoff)
+    called = []
+    monkeypatch.setattr(prim, "_continued", lambda *a, _c=prim._continued: called.append(1) or _c(*a))
+    fast = fit_torus(pts, nrm, tolerance=eps, exact=True)
+    monkeypatch.setattr(prim, "DIRECT_LOOP", False)
+    slow = fit_torus(pts, nrm, tolerance=eps, exact=True)
+    assert len(called) == 2  # the continuation ran: the loop under test was used
+    assert bool(fast) == bool(slow) and fast.reason == slow.reason
+    assert fast.params == slow.params  # plain floats: equal means bit-identical
+    assert fast.deviation == slow.deviation
+
+
+def test_lm_plain_is_least_squares_lm():
+    """``lm_plain`` against ``least_squares(method="lm", x_scale="jac")`` on a circle through noisy points: the same
+    solution, residuals, evaluation count and status, with the budget binding and not."""
+    from scipy.optimize import least_squares
+
+    from recon.fit._trf import lm_plain
+
+    rng = np.random.default_rng(3)
+    t = rng.uniform(0, 2, 30)
+    xy = np.c_[3 + 2 * np.cos(t), -1 + 2 * np.sin(t)] + 0.01 * rng.standard_normal((30, 2))
+
+    def fun(x):
+        return np.hypot(xy[:, 0] - x[0], xy[:, 1] - x[1]) - x[2]
+
+    def jac(x):
+        r = np.hypot(xy[:, 0] - x[0], xy[:, 1] - x[1])
+        return np.c_[(x[0] - xy[:, 0]) / r, (x[1] - xy[:, 1]) / r, -np.ones(len(xy))]
+
+    for budget in (3, 100):
+        got = lm_plain(fun, jac, np.array([0.0, 0.0, 1.0]), budget)
+        want = least_squares(fun, np.array([0.0, 0.0, 1.0]), jac=jac, method="lm", x_scale="jac", max_nfev=budget)
+        assert np.array_equal(got.x, want.x) and np.array_equal(got.fun, want.fun)
+        assert (got.nfev, got.status) == (want.nfev, want.status)
+    assert got.status > 0 and want.status > 0  # the larger budget converged
+
+
 def _rim_band(r: float, h: float, n: int):
     """A cylinder band of radius r and height h drawn by its two rims alone, as an exporter draws a loft's wall
     whose rulings are straight: n vertices a rim (the top turned by half a section), 2n long triangles."""

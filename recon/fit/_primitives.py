@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import FitError
 from ._noise import estimate_normals
-from ._trf import trf_soft_l1
+from ._trf import lm_plain, trf_soft_l1
 from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import HUGE, MAD_TO_SIGMA, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
@@ -497,11 +497,14 @@ _EXACT_GAIN = 0.9
 
 def _continued(fun, jac, x, q):
     """Plain least squares from ``x`` for at most :data:`_EXACT_NFEV` evaluations, while each chunk still gains."""
-    from scipy.optimize import least_squares  # only here: see _solve
-
     spent, worst = 0, float(np.max(np.abs(fun(x, q))))
     while True:
-        res = least_squares(fun, x, args=(q,), jac=jac, method="lm", x_scale="jac", max_nfev=_EXACT_CHUNK)
+        if DIRECT_LOOP:  # least_squares(method="lm") without its wrappers, bit for bit (recon.fit._trf)
+            res = lm_plain(lambda x: fun(x, q), lambda x: jac(x, q), x, _EXACT_CHUNK)
+        else:
+            from scipy.optimize import least_squares  # only here: see _solve
+
+            res = least_squares(fun, x, args=(q,), jac=jac, method="lm", x_scale="jac", max_nfev=_EXACT_CHUNK)
         spent += res.nfev
         now = float(np.max(np.abs(res.fun)))
         if res.status != 0 or spent >= _EXACT_NFEV or now > _EXACT_GAIN * worst:
@@ -551,19 +554,35 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0 = c0 + z0 * d0
     e1, e2 = perpendicular_frame(d0)
 
+    # _direction, _rho_z, _direction_jac and _radial inlined, the Jacobian filled in place: the same operations in the
+    # same order (the same floats), called ~100 times per fit on ~10 exact vertices, where each call is its overhead
     def fun(x, q):
-        d = _direction(d0, e1, e2, x[0], x[1])
-        hh, rr = _rho_z(q, c0 + x[2:5], d)
+        d = d0 + x[0] * e1 + x[1] * e2
+        d = d / np.sqrt(d.dot(d))
+        w = q - (c0 + x[2:5])
+        hh = w @ d
+        rr = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - hh * hh, 0.0))
         return np.hypot(rr - x[5], hh) - x[6]
 
     def jac(x, q):
-        d, da, db = _direction_jac(d0, e1, e2, x[0], x[1])
+        v = d0 + x[0] * e1 + x[1] * e2
+        nv = np.sqrt(v.dot(v))
+        d = v / nv
         w = q - (c0 + x[2:5])
-        h, rho, u = _radial(w, d)
-        dist = np.maximum(np.hypot(rho - x[5], h), 1e-300)
+        h = w @ d
+        radial = w - h[:, None] * d
+        rho = row_norms(radial)
+        u = radial / np.maximum(rho, 1e-300)[:, None]
+        off = rho - x[5]
+        dist = np.maximum(np.hypot(off, h), 1e-300)
         k = h * x[5] / (dist * np.maximum(rho, 1e-300))  # ∂r/∂d = w · hR/(Dρ)
-        d_centre = -((rho - x[5]) / dist)[:, None] * u - (h / dist)[:, None] * d
-        return _columns(k * (w @ da), k * (w @ db), d_centre, -(rho - x[5]) / dist, -np.ones(len(q)))
+        out = np.empty((len(q), 7))
+        out[:, 0] = k * (w @ ((e1 - d * (d @ e1)) / nv))
+        out[:, 1] = k * (w @ ((e2 - d * (d @ e2)) / nv))
+        out[:, 2:5] = -(off / dist)[:, None] * u - (h / dist)[:, None] * d
+        out[:, 5] = -off / dist
+        out[:, 6] = -1.0
+        return out
 
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, r_major0, r_minor0])
     res = _refine(fun, x0, q, scale=scale, size=size, tolerance=tolerance, jac=jac)

@@ -9,7 +9,8 @@ checks, and a LAPACK workspace query per call: the workspace is the same for the
 loss function's closure, ``np.linalg.norm``'s dispatch, the helper calls and ``OptimizeResult``.
 
 The differential test ``test_direct_trust_region_loop_is_least_squares_bit_for_bit`` compares it with
-``least_squares`` itself.
+``least_squares`` itself. :func:`lm_plain` is the same for ``method="lm"``: MINPACK's ``lmder`` called as
+``least_squares`` calls it, without its ``VectorFunction`` (a copy and an ``array_equal`` per evaluation).
 """
 
 from __future__ import annotations
@@ -283,3 +284,33 @@ def trf_soft_l1(fun, jac, x0, f0, J0, f_scale: float, max_nfev: int, ftol=1e-8, 
     if termination_status is None:
         termination_status = 0
     return TrfResult(x, f_true, cost, nfev, njev, termination_status)
+
+
+#: scipy's ``FROM_MINPACK_TO_COMMON``: MINPACK's ``info`` as ``least_squares``'s ``status``.
+_MINPACK_STATUS = {0: -1, 1: 2, 2: 3, 3: 4, 4: 1, 5: 0}
+
+
+def lm_plain(fun, jac, x0, max_nfev: int, ftol=1e-8, xtol=1e-8, gtol=1e-8):
+    """``least_squares(fun, x0, jac=jac, method="lm", x_scale="jac", max_nfev=max_nfev)`` (scipy 1.17's
+    ``call_minpack``: ``diag=None``, ``factor=100``, rows of J as returned), bit for bit.
+
+    ``fun(x)`` (m,) and ``jac(x)`` (m, n) float arrays, m ≥ n. Returns a :class:`TrfResult` (``cost`` and ``njev``
+    as scipy's); raises ``ValueError`` when the residuals at ``x0`` are not finite, as ``least_squares`` does.
+    """
+    from scipy.optimize import _minpack  # here: scipy.optimize is 0.1 s of start-up the trust-region loop never uses
+
+    if not callable(getattr(_minpack, "_lmder", None)):  # a private call: a scipy without it gets the public one
+        from scipy.optimize import least_squares
+
+        res = least_squares(fun, x0, jac=jac, method="lm", x_scale="jac", max_nfev=max_nfev)
+        return TrfResult(res.x, res.fun, res.cost, res.nfev, res.njev, res.status)
+    x0 = np.atleast_1d(x0).astype(float)
+    f0 = np.atleast_1d(fun(x0))
+    if not np.all(np.isfinite(f0)):
+        raise ValueError("Residuals are not finite in the initial point.")  # as least_squares
+    if f0.size < x0.size:
+        raise ValueError("Method 'lm' doesn't work when the number of residuals is less than the number of variables.")
+    x, info, status = _minpack._lmder(lambda x: np.atleast_1d(fun(x)), lambda x: np.atleast_2d(jac(x)), x0.copy(), (),
+                                      True, False, ftol, xtol, gtol, max_nfev, 100.0, None)
+    f = info["fvec"]
+    return TrfResult(x, f, 0.5 * np.dot(f, f), info["nfev"], info.get("njev"), _MINPACK_STATUS[status])
