@@ -189,6 +189,16 @@ def test_a_finely_drawn_torus_grows_as_one_region(tmp_path):
     assert [f.type for f in _faces(mesh).fits.values()] == ["torus"]
 
 
+def test_a_narrow_chamfer_band_tangent_to_a_sphere_is_its_cone():
+    """Export seeds 53 and 112: a chamfer band of two rings lies on a cone and on a sphere centred on the axis; where the
+    band is square to the sphere's radius (a 45° chamfer as far from the centre along the axis as across it) its
+    0.3 mm rulings sag off that sphere by ℓ²/8R ≈ 2e-4, under the round-off, so both hold every edge and the sphere
+    came first. The cone holds its rulings as closely as its own vertices (to 1e-6), the sphere only to its sag."""
+    solid = bd.chamfer(bd.Cylinder(42.39, 84.78).edges(), 0.21)
+    found = _faces(_export(solid, 1e-3, 0.5))
+    assert Counter(f.type for f in found.fits.values()) == Counter(f.geom_type.name.lower() for f in solid.faces())
+
+
 @pytest.mark.parametrize("chord", [1e-4, 1e-3])
 def test_a_cylinder_wall_and_its_chamfer_on_three_rings_are_not_given_as_one_torus(chord):
     """A boss of one band (two rings) with a 0.5 chamfer (one band more): any three circles about one axis lie on a

@@ -464,12 +464,16 @@ def reclaim(at: _Atoms, regions: list, eps: Tol, sag: float) -> list[tuple[list,
 MERGE_ROUNDS = 3
 
 
-def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> int:
+def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> tuple[int, int]:
     """How many of the triangles' edge midpoints lie on ``fit`` to round-off: a straight edge on the surface (a
-    cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not."""
+    cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not;
+    then how many lie on it as closely as its own vertices do (a ruling does; a doubly curved surface holds a short
+    edge within round-off only by its sag ℓ²/8R, which its vertices do not show)."""
     P = V[F[tris]]
     mids = np.concatenate([(P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
-    return int((np.abs(fit.distance(mids)) <= eps).sum())
+    d = np.abs(fit.distance(mids))
+    own = float(np.abs(fit.distance(P.reshape(-1, 3))).max())
+    return int((d <= eps).sum()), int((d <= own).sum())
 
 
 def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) -> tuple[SurfaceFit, str]:
@@ -480,15 +484,18 @@ def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) 
     fits = _asked(at, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
         return fits[0], ""
-    on, best = _by_rulings(fits, V, F, tris, eps)[0]
+    (on, _), best = _by_rulings(fits, V, F, tris, eps)[0]
     return best, (f"{best.type} chosen among {', '.join(f.type for f in fits)} that all hold its {len(ids)} vertices "
                   f"to round-off ({on} edges on it)")
 
 
-def _by_rulings(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: Tol) -> list[tuple[int, SurfaceFit]]:
-    """``(edges on it, fit)`` for each fit, the most of the triangles' edges on it (rulings) first, the simplest of
-    equals first (``fits`` come simplest first)."""
-    return sorted(((_on_chords(f, V, F, tris, _floor(eps)), f) for f in fits), key=lambda x: -x[0])
+def _by_rulings(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray,
+                eps: Tol) -> list[tuple[tuple[int, int], SurfaceFit]]:
+    """``((edges on it, edges on it as closely as its vertices), fit)`` for each fit, the most of the triangles' edges
+    on it (rulings) first, then the most on it to its vertices' own residual (a narrow chamfer band's rulings hold a
+    sphere through its two rings within round-off too), the simplest of equals first (``fits`` come simplest first)."""
+    ranked = [(_on_chords(f, V, F, tris, _floor(eps)), f) for f in fits]
+    return sorted(ranked, key=lambda x: (-x[0][0], -x[0][1]))
 
 
 def _band_fits(at: _Atoms, tris: np.ndarray, eps: Tol, sag: float) -> list[SurfaceFit]:
