@@ -81,6 +81,18 @@ def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     assert not [n for n in found.notes if "not proven" in n]
 
 
+def test_two_quads_a_cylinder_holds_are_planes_where_the_only_curved_faces_are_tori_no_exporter_drew(tmp_path):
+    """Export seed 112: a 45° chamfer quad and its neighbour quad (3 parallel lines of vertices lie on a cylinder) are
+    planes when their chords sag more than the well-drawn curved faces' (the weak-face rule); that limit came from
+    three-ring tori whose chords sag 1.08 (the wall and chamfer of a boss taken as one, split into their bands later),
+    so the cylinders (sag 1.02) were kept: 11 faces of 13. Such tori set no limit: 13 of 13, each one true face."""
+    found, true, meta = _corpus_faces(112, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"] == 13
+    assert dict(Counter(f.type for f in found.fits.values())) == dict(Counter(meta["face_types"]))
+    for p in range(int(found.labels.max()) + 1):
+        assert len(np.unique(true[found.labels == p])) == 1
+
+
 def test_a_variable_fillet_cut_into_pieces_at_kinks_is_not_given_as_faces(tmp_path):
     """Export seed 30: a variable-radius fillet (one B-spline face) that the second pass cut into 6 cylinders and 4
     planes of 1-3 triangles, meeting at kinks of 4.5-11 degrees a blend cannot have: 16 faces for 7, which recon wrote

@@ -32,7 +32,7 @@ from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
-from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori
+from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori, undrawn_torus
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 from ._exact_turn import drawn_alike, largest_turn
@@ -572,14 +572,16 @@ def _sag_of(at: _Atoms, region: list, fit: SurfaceFit) -> float:
     return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris)))))
 
 
-def _weak_dropped(at: _Atoms, regions: list, notes: list) -> list:
+def _weak_dropped(at: _Atoms, regions: list, notes: list, eps: float) -> list:
     """The curved regions ``(atoms, seed's fit, best fit)`` without those of fewer than :data:`WEAK_ATOMS` atoms whose
-    sag exceeds the sag of the well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none): planes
+    sag exceeds the sag of the well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none; a torus
+    its exporter cannot have drawn, :func:`undrawn_torus`, is not one): planes
     meeting at a small angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through
     their corners). A weak region is judged by the nearer of its two surfaces; each kept one gets its best fit when that
     passes, else its seed's."""
     sags = [(_sag_of(at, r, f), _sag_of(at, r, b)) for r, f, b in regions]
-    strong = [s for (r, _, _), (s, _) in zip(regions, sags) if len(r) >= WEAK_ATOMS]
+    strong = [s for (r, _, b), (s, _) in zip(regions, sags)
+              if len(r) >= WEAK_ATOMS and not undrawn_torus(at.mesh.vertices[at.points(r)[0]], b, eps)]
     limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
     kept = []
     for (r, f, b), (s, sb) in zip(regions, sags):
@@ -693,7 +695,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # judged at round-off alone: a loose rim lets a sphere hold a cylinder's arc within the tolerance; a face found
     # only with loose rims keeps its own surface
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
-    for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes):
+    for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes, _floor(eps)):
         p = len(fits)
         fits[p] = fit
         if best[id(region)][1] and fit is best[id(region)][0]:
