@@ -580,7 +580,7 @@ def _weak_dropped(at: _Atoms, regions: list, notes: list, eps: float) -> list:
     their corners). A weak region is judged by the nearer of its two surfaces; each kept one gets its best fit when that
     passes, else its seed's."""
     sags = [(_sag_of(at, r, f), _sag_of(at, r, b)) for r, f, b in regions]
-    strong = [s for (r, _, b), (s, _) in zip(regions, sags)
+    strong = [sb for (r, _, b), (_, sb) in zip(regions, sags)  # a strong region's face is its best fit
               if len(r) >= WEAK_ATOMS and not undrawn_torus(at.mesh.vertices[at.points(r)[0]], b, eps)]
     limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
     kept = []
