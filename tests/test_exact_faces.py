@@ -81,6 +81,18 @@ def test_corpus_seeds_get_their_true_faces_and_types(seed, tmp_path):
     assert not [n for n in found.notes if "not proven" in n]
 
 
+def test_two_quads_a_cylinder_holds_are_planes_where_the_only_curved_faces_are_tori_no_exporter_drew(tmp_path):
+    """Export seed 112: a 45° chamfer quad and its neighbour quad (3 parallel lines of vertices lie on a cylinder) are
+    planes when their chords sag more than the well-drawn curved faces' (the weak-face rule); that limit came from
+    three-ring tori whose chords sag 1.08 (the wall and chamfer of a boss taken as one, split into their bands later),
+    so the cylinders (sag 1.02) were kept: 11 faces of 13. Such tori set no limit: 13 of 13, each one true face."""
+    found, true, meta = _corpus_faces(112, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"] == 13
+    assert dict(Counter(f.type for f in found.fits.values())) == dict(Counter(meta["face_types"]))
+    for p in range(int(found.labels.max()) + 1):
+        assert len(np.unique(true[found.labels == p])) == 1
+
+
 def test_a_variable_fillet_cut_into_pieces_at_kinks_is_not_given_as_faces(tmp_path):
     """Export seed 30: a variable-radius fillet (one B-spline face) that the second pass cut into 6 cylinders and 4
     planes of 1-3 triangles, meeting at kinks of 4.5-11 degrees a blend cannot have: 16 faces for 7, which recon wrote
@@ -187,6 +199,16 @@ def test_a_finely_drawn_torus_grows_as_one_region(tmp_path):
     assert all(f.type == "torus" for _, f in regions)
     assert sizes[0] >= 0.9 * len(at.tris), sizes[:5]
     assert [f.type for f in _faces(mesh).fits.values()] == ["torus"]
+
+
+def test_a_narrow_chamfer_band_tangent_to_a_sphere_is_its_cone():
+    """Export seeds 53 and 112: a chamfer band of two rings lies on a cone and on a sphere centred on the axis; where the
+    band is square to the sphere's radius (a 45° chamfer as far from the centre along the axis as across it) its
+    0.3 mm rulings sag off that sphere by ℓ²/8R ≈ 2e-4, under the round-off, so both hold every edge and the sphere
+    came first. The cone holds its rulings as closely as its own vertices (to 1e-6), the sphere only to its sag."""
+    solid = bd.chamfer(bd.Cylinder(42.39, 84.78).edges(), 0.21)
+    found = _faces(_export(solid, 1e-3, 0.5))
+    assert Counter(f.type for f in found.fits.values()) == Counter(f.geom_type.name.lower() for f in solid.faces())
 
 
 @pytest.mark.parametrize("chord", [1e-4, 1e-3])

@@ -32,7 +32,7 @@ from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
-from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori
+from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori, undrawn_torus
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 from ._exact_turn import drawn_alike, largest_turn
@@ -464,12 +464,16 @@ def reclaim(at: _Atoms, regions: list, eps: Tol, sag: float) -> list[tuple[list,
 MERGE_ROUNDS = 3
 
 
-def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> int:
+def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: float) -> tuple[int, int]:
     """How many of the triangles' edge midpoints lie on ``fit`` to round-off: a straight edge on the surface (a
-    cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not."""
+    cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not;
+    then how many lie on it as closely as its own vertices do (a ruling does; a doubly curved surface holds a short
+    edge within round-off only by its sag ℓ²/8R, which its vertices do not show)."""
     P = V[F[tris]]
     mids = np.concatenate([(P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
-    return int((np.abs(fit.distance(mids)) <= eps).sum())
+    d = np.abs(fit.distance(mids))
+    own = float(np.abs(fit.distance(P.reshape(-1, 3))).max())
+    return int((d <= eps).sum()), int((d <= own).sum())
 
 
 def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) -> tuple[SurfaceFit, str]:
@@ -480,15 +484,18 @@ def _best_type(at: _Atoms, region: list, fit: SurfaceFit, eps: Tol, sag: float) 
     fits = _asked(at, ids, tris, eps, sag, first=False) or [fit]
     if len(fits) == 1:
         return fits[0], ""
-    on, best = _by_rulings(fits, V, F, tris, eps)[0]
+    (on, _), best = _by_rulings(fits, V, F, tris, eps)[0]
     return best, (f"{best.type} chosen among {', '.join(f.type for f in fits)} that all hold its {len(ids)} vertices "
                   f"to round-off ({on} edges on it)")
 
 
-def _by_rulings(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray, eps: Tol) -> list[tuple[int, SurfaceFit]]:
-    """``(edges on it, fit)`` for each fit, the most of the triangles' edges on it (rulings) first, the simplest of
-    equals first (``fits`` come simplest first)."""
-    return sorted(((_on_chords(f, V, F, tris, _floor(eps)), f) for f in fits), key=lambda x: -x[0])
+def _by_rulings(fits: list, V: np.ndarray, F: np.ndarray, tris: np.ndarray,
+                eps: Tol) -> list[tuple[tuple[int, int], SurfaceFit]]:
+    """``((edges on it, edges on it as closely as its vertices), fit)`` for each fit, the most of the triangles' edges
+    on it (rulings) first, then the most on it to its vertices' own residual (a narrow chamfer band's rulings hold a
+    sphere through its two rings within round-off too), the simplest of equals first (``fits`` come simplest first)."""
+    ranked = [(_on_chords(f, V, F, tris, _floor(eps)), f) for f in fits]
+    return sorted(ranked, key=lambda x: (-x[0][0], -x[0][1]))
 
 
 def _band_fits(at: _Atoms, tris: np.ndarray, eps: Tol, sag: float) -> list[SurfaceFit]:
@@ -565,14 +572,16 @@ def _sag_of(at: _Atoms, region: list, fit: SurfaceFit) -> float:
     return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris)))))
 
 
-def _weak_dropped(at: _Atoms, regions: list, notes: list) -> list:
+def _weak_dropped(at: _Atoms, regions: list, notes: list, eps: float) -> list:
     """The curved regions ``(atoms, seed's fit, best fit)`` without those of fewer than :data:`WEAK_ATOMS` atoms whose
-    sag exceeds the sag of the well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none): planes
+    sag exceeds the sag of the well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none; a torus
+    its exporter cannot have drawn, :func:`undrawn_torus`, is not one): planes
     meeting at a small angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through
     their corners). A weak region is judged by the nearer of its two surfaces; each kept one gets its best fit when that
     passes, else its seed's."""
     sags = [(_sag_of(at, r, f), _sag_of(at, r, b)) for r, f, b in regions]
-    strong = [s for (r, _, _), (s, _) in zip(regions, sags) if len(r) >= WEAK_ATOMS]
+    strong = [sb for (r, _, b), (_, sb) in zip(regions, sags)  # a strong region's face is its best fit
+              if len(r) >= WEAK_ATOMS and not undrawn_torus(at.mesh.vertices[at.points(r)[0]], b, eps)]
     limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
     kept = []
     for (r, f, b), (s, sb) in zip(regions, sags):
@@ -686,7 +695,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # judged at round-off alone: a loose rim lets a sphere hold a cylinder's arc within the tolerance; a face found
     # only with loose rims keeps its own surface
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
-    for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes):
+    for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes, _floor(eps)):
         p = len(fits)
         fits[p] = fit
         if best[id(region)][1] and fit is best[id(region)][0]:

@@ -140,6 +140,22 @@ def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends
     return bool(np.all(turn <= bound))
 
 
+def _three_rings(P: np.ndarray, fit, eps: float):
+    """``(meridian, ring, undrawn, along)`` of a torus through the points ``P`` (:func:`_ring_ids`, :func:`_undrawn`);
+    ``undrawn`` only where they lie on three rings."""
+    torus = _meridian(fit, np.zeros(3))
+    ring = _ring_ids(P, torus[0], torus[1], RING_SPREAD * eps)
+    if ring.max() != 2:
+        return torus, ring, False, None
+    return (torus, ring, *_undrawn(P, ring, torus))
+
+
+def undrawn_torus(P: np.ndarray, fit, eps: float) -> bool:
+    """Whether ``fit`` is a torus on three rings of the points ``P`` that its exporter cannot have drawn (its two bands
+    are two faces, :func:`split_undrawn_tori`): the wrong surface, whose chords sag as no drawn face's do."""
+    return fit.type == "torus" and bool(_three_rings(P, fit, eps)[2])
+
+
 def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, eps: float, pairs: np.ndarray,
                        ends: np.ndarray, band_fits) -> tuple[np.ndarray, dict, int, str]:
     """``(labels, fits, n, note)``: every torus face on three vertex rings that its exporter cannot have drawn so
@@ -152,11 +168,7 @@ def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: d
     for p in [p for p, f in fits.items() if f.type == "torus"]:
         tris = np.flatnonzero(labels == p)
         ids, local = np.unique(F[tris], return_inverse=True)
-        torus = _meridian(fits[p], np.zeros(3))
-        ring = _ring_ids(V[ids], torus[0], torus[1], RING_SPREAD * eps)
-        if ring.max() != 2:
-            continue
-        undrawn, along = _undrawn(V[ids], ring, torus)
+        torus, ring, undrawn, along = _three_rings(V[ids], fits[p], eps)
         if not undrawn:
             continue
         corner = ring[local.reshape(-1, 3)]
