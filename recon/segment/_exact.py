@@ -32,10 +32,11 @@ from ._exact_kinks import kinks as _kinks
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
-from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori, undrawn_torus
+from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 from ._exact_turn import drawn_alike, largest_turn
+from ._exact_weak import chord_points as _chord_points, weak_dropped
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
            "roundoff"]
@@ -169,12 +170,6 @@ class _Atoms:
         """(vertex ids, triangles) of a set of atoms."""
         tris = np.concatenate([self.tris[a] for a in atoms])
         return np.unique(np.concatenate([self.verts[a] for a in atoms])), tris
-
-
-def _chord_points(V: np.ndarray, F: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """The centroids and edge midpoints of triangles: where a chord lies farthest from the surface it spans."""
-    P = V[F[tris]]
-    return np.concatenate([P.mean(axis=1), (P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
 
 
 #: Round-off per vertex: one distance for every vertex, or an array over the mesh's vertices (a vertex that a found
@@ -558,43 +553,6 @@ def _bspline_through(V: np.ndarray, F: np.ndarray, tris: np.ndarray, tolerance: 
     return fit if fit.ok else None
 
 
-#: A curved face of fewer atoms than this (a fillet one or two strips wide) is told from planes meeting at an angle
-#: only by its sag: it is kept when its chords lie no farther from it than the chords of the faces drawn with more.
-WEAK_ATOMS = 4
-#: ... with this margin: an exporter's chord tolerance bounds every face's sag, the faces measured reach it only
-#: where the chord criterion, not the angle criterion, placed their vertices.
-WEAK_SAG_MARGIN = 1.5
-
-
-def _sag_of(at: _Atoms, region: list, fit: SurfaceFit) -> float:
-    V, F = at.mesh.vertices, at.mesh.faces
-    tris = np.concatenate([at.tris[a] for a in region])
-    return float(np.max(np.abs(fit.distance(_chord_points(V, F, tris)))))
-
-
-def _weak_dropped(at: _Atoms, regions: list, notes: list, eps: float) -> list:
-    """The curved regions ``(atoms, seed's fit, best fit)`` without those of fewer than :data:`WEAK_ATOMS` atoms whose
-    sag exceeds the sag of the well-drawn curved faces (× :data:`WEAK_SAG_MARGIN`; any sag when there is none; a torus
-    its exporter cannot have drawn, :func:`undrawn_torus`, is not one): planes
-    meeting at a small angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through
-    their corners). A weak region is judged by the nearer of its two surfaces; each kept one gets its best fit when that
-    passes, else its seed's."""
-    sags = [(_sag_of(at, r, f), _sag_of(at, r, b)) for r, f, b in regions]
-    strong = [sb for (r, _, b), (_, sb) in zip(regions, sags)  # a strong region's face is its best fit
-              if len(r) >= WEAK_ATOMS and not undrawn_torus(at.mesh.vertices[at.points(r)[0]], b, eps)]
-    limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
-    kept = []
-    for (r, f, b), (s, sb) in zip(regions, sags):
-        if len(r) >= WEAK_ATOMS or sb <= limit:
-            kept.append((r, b))
-        elif s <= limit:
-            kept.append((r, f))
-        else:
-            notes.append(f"{len(r)} plane pieces a {b.type} holds to round-off kept as planes: its chords lie "
-                         f"{min(s, sb):.3g} from it, the well-drawn curved faces' at most {limit / WEAK_SAG_MARGIN:.3g}")
-    return kept
-
-
 #: Rounds of taking a free-form face whole: the first joins its pieces, the second the flat patches the joined face
 #: then surrounds (each piece alone did not).
 ENCLOSED_ROUNDS = 2
@@ -695,7 +653,7 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     # judged at round-off alone: a loose rim lets a sphere hold a cylinder's arc within the tolerance; a face found
     # only with loose rims keeps its own surface
     best = {id(r): _best_type(at, r, f, eps, sag) for r, f in curved}
-    for region, fit in _weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes, _floor(eps)):
+    for region, fit in weak_dropped(at, [(r, f, best[id(r)][0]) for r, f in curved], notes, _floor(eps)):
         p = len(fits)
         fits[p] = fit
         if best[id(region)][1] and fit is best[id(region)][0]:

@@ -31,7 +31,7 @@ STRIP_TRIANGLES = 2
 #: vertices the neighbouring faces add along its rulings; a plane polygon of more corners is proven a plane.
 STRIP_CORNERS = 4
 #: A run of fewer strips is told from a polygon's sides meeting at small angles only by its sag (the exact path's
-#: weak-face rule, ``WEAK_ATOMS``), and the seeds tried each of its atoms with its neighbours already: it stays planes.
+#: weak-face rule, ``_exact_weak.WEAK_ATOMS``), and the seeds tried each of its atoms with its neighbours already: it stays planes.
 STRIP_MIN_ATOMS = 4
 
 FitUnion = Callable[[np.ndarray, np.ndarray], Any]
