@@ -464,10 +464,8 @@ def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, 
     cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not;
     then how many lie on it as closely as its own vertices do (a ruling does; a doubly curved surface holds a short
     edge within round-off only by its sag ℓ²/8R, which its vertices do not show)."""
-    P = V[F[tris]]
-    mids = np.concatenate([(P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
-    d = np.abs(fit.distance(mids))
-    own = float(np.abs(fit.distance(P.reshape(-1, 3))).max())
+    d = np.abs(fit.distance(_chord_points(V, F, tris)[len(tris):]))  # the edge midpoints, not the centroids
+    own = float(np.abs(fit.distance(V[np.unique(F[tris])])).max())
     return int((d <= eps).sum()), int((d <= own).sum())
 
 
