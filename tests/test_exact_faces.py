@@ -93,6 +93,18 @@ def test_two_quads_a_cylinder_holds_are_planes_where_the_only_curved_faces_are_t
         assert len(np.unique(true[found.labels == p])) == 1
 
 
+def test_a_split_band_tangent_to_a_fillet_leaves_the_count_proven(tmp_path):
+    """Export seed 126: four split bands (cylinders) meet fillet tori with no turn at all (0.00°, against ring sections
+    of 8.2°); the guard that leaves a count open where a band meets a neighbour as smoothly as a profile drawn in rings
+    turns (seed 128: 7.67° against 4.0°) took those blend edges for such rings: 37 of 37 faces, count open, exit 1.
+    A join within the fits' round-off tilts is a tangent edge: the count is proven."""
+    found, true, meta = _corpus_faces(126, tmp_path)
+    assert int(found.labels.max()) + 1 == meta["faces"] == 37
+    for p in range(int(found.labels.max()) + 1):
+        assert len(np.unique(true[found.labels == p])) == 1
+    assert not found.open_count
+
+
 def test_a_variable_fillet_cut_into_pieces_at_kinks_is_not_given_as_faces(tmp_path):
     """Export seed 30: a variable-radius fillet (one B-spline face) that the second pass cut into 6 cylinders and 4
     planes of 1-3 triangles, meeting at kinks of 4.5-11 degrees a blend cannot have: 16 faces for 7, which recon wrote

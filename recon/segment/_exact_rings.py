@@ -192,7 +192,7 @@ def split_undrawn_tori(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: d
         n += 1
         for q in (p, len(fits) - 1):
             _join_alike(V, F, labels, fits, q, pairs, RING_SPREAD * eps)
-            smooth += _smooth_join(V, labels, fits, q, pairs, ends, torus[0], torus[1])
+            smooth += _smooth_join(V, F, labels, fits, q, pairs, ends, torus[0], torus[1], eps)
     used, labels = np.unique(labels, return_inverse=True)
     note = (f"face count not proven: {smooth} band(s) of a split torus meet a neighbour no more sharply than one "
             "face's sections may turn (a surface of revolution drawn in rings, or two faces)") if smooth else ""
@@ -205,19 +205,24 @@ def _neighbours(labels: np.ndarray, pairs: np.ndarray, q: int) -> list[int]:
     return [int(r) for r in np.unique(np.r_[b[a == q], a[b == q]]) if r != q]
 
 
-def _smooth_join(V: np.ndarray, labels: np.ndarray, fits: dict, q: int, pairs: np.ndarray, ends: np.ndarray,
-                 center: np.ndarray, axis: np.ndarray) -> bool:
+def _smooth_join(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, q: int, pairs: np.ndarray,
+                 ends: np.ndarray, center: np.ndarray, axis: np.ndarray, eps: float) -> bool:
     """Whether face ``q`` meets a neighbour along a ring about ``axis`` with the two surfaces' normals turning by no
     more than :data:`UNDRAWN_MARGIN` sections of that ring: one face's meridian drawn in rings turns so much between
-    them (a cone stack for a curved profile), so the two may be one face."""
+    them (a cone stack for a curved profile), so the two may be one face. A join that turns by no more than the fits'
+    round-off tilts (2 eps over each side's shortest triangle height) is a blend's tangent edge, not such a ring."""
     a, b = labels[pairs[:, 0]], labels[pairs[:, 1]]
     e1, e2 = _frame(axis)
     for r in _neighbours(labels, pairs, q):
-        shared = np.unique(ends[((a == q) & (b == r)) | ((a == r) & (b == q))])
+        on = ((a == q) & (b == r)) | ((a == r) & (b == q))
+        shared = np.unique(ends[on])
         if len(shared) < 3:
             continue
         turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[q], V[shared]),
                                                   surface_normals(fits[r], V[shared]))), 0.0, 1.0))
+        tilt = min(2 * eps / shortest_height(V[F[x]]) + 2 * eps / shortest_height(V[F[y]]) for x, y in pairs[on])
+        if np.all(turn <= tilt):
+            continue
         if np.median(turn) <= UNDRAWN_MARGIN * _section_step(V[shared] - center, e1, e2):
             return True
     return False
