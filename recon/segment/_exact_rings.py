@@ -117,6 +117,12 @@ def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarra
     return undrawn, along
 
 
+def _tilts(V: np.ndarray, F: np.ndarray, t: np.ndarray, u: np.ndarray, eps: float) -> np.ndarray:
+    """How far round-off may tilt two fitted surfaces' normals apart across each edge between triangles ``t`` and
+    ``u``: 2 eps over the shortest height of the triangle on each side."""
+    return np.array([2 * eps / shortest_height(V[F[x]]) + 2 * eps / shortest_height(V[F[y]]) for x, y in zip(t, u)])
+
+
 def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends: np.ndarray, labels: np.ndarray,
                            fits: dict, p: int, eps: float) -> bool:
     """Whether face ``p`` meets every other face along its edges tangentially: the two fitted surfaces' normals at
@@ -130,7 +136,7 @@ def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends
     if not on.any():
         return False
     t, u, e = t[on], u[on], ends[on]
-    bound = np.repeat([2 * eps / shortest_height(V[F[x]]) + 2 * eps / shortest_height(V[F[y]]) for x, y in zip(t, u)], 2)
+    bound = np.repeat(_tilts(V, F, t, u, eps), 2)
     mine = surface_normals(fits[p], V[e.ravel()])
     theirs = np.empty_like(mine)
     side = np.repeat(labels[u], 2)
@@ -220,8 +226,7 @@ def _smooth_join(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, q
             continue
         turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[q], V[shared]),
                                                   surface_normals(fits[r], V[shared]))), 0.0, 1.0))
-        tilt = min(2 * eps / shortest_height(V[F[x]]) + 2 * eps / shortest_height(V[F[y]]) for x, y in pairs[on])
-        if np.all(turn <= tilt):
+        if np.all(turn <= _tilts(V, F, pairs[on, 0], pairs[on, 1], eps).min()):
             continue
         if np.median(turn) <= UNDRAWN_MARGIN * _section_step(V[shared] - center, e1, e2):
             return True
