@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["HELPER_COS", "as_points", "axis_helper", "x_or_y_helper",
-           "col_means", "col_sums", "columns", "cross3", "extent", "perpendicular_frame",
+           "col_means", "col_sums", "columns", "cross3", "extent", "height_radius", "perpendicular_frame",
            "row_norms", "row_sums", "unique_inverse", "unit"]
 
 
@@ -86,6 +86,15 @@ def extent(x: np.ndarray) -> float:
     t = x.T
     d = t.max(axis=1) - t.min(axis=1)
     return float(np.sqrt(d.dot(d)))
+
+
+def height_radius(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each point's height ``h`` along the line through ``origin`` along ``axis`` (unit) and its distance ``ρ`` from
+    that line, for points (n, 3): the (ρ, z) half-plane of a surface of revolution. ``ρ² = |w|² − h²`` is clamped at
+    0: round-off makes it slightly negative on the axis."""
+    w = points - origin
+    h = w @ axis
+    return h, np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
 
 
 def row_norms(x: np.ndarray, keepdims: bool = False) -> np.ndarray:

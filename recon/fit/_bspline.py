@@ -188,8 +188,9 @@ def _cylindrical(points: np.ndarray, faces: np.ndarray):
 def _parametrise(points, normals, faces):
     """Initial (u, v) of every point and a function mapping them; or (None, reason)."""
     origin, eu, ev, en = _plane_frame(points)
-    cosines = np.abs(normals @ en)
-    if np.percentile(cosines, 1) > np.cos(np.deg2rad(80)):
+    # of the points with a normal: a zero one (see fit_bspline_surface) tells nothing about the patch's steepness
+    cosines = np.abs(normals @ en)[np.any(normals != 0, axis=1)]
+    if len(cosines) and np.percentile(cosines, 1) > np.cos(np.deg2rad(80)):
         q = points - origin
         return np.column_stack([q @ eu, q @ ev]), "plane", None
     if faces is None:
@@ -414,7 +415,9 @@ def fit_bspline_surface(
         nrm = as_points(normals, "normals", error=FitError)
         if len(nrm) != len(pts):
             raise FitError(f"`normals` must have one row per point ({len(pts)}), got {len(nrm)}")
-        nrm = nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
+        # a point on zero-area triangles only (or on two that cancel) has a zero normal: it stays zero, no direction
+        length = np.linalg.norm(nrm, axis=1, keepdims=True)
+        nrm = nrm / np.where(length > 0, length, 1.0)
     if faces is not None:
         faces = np.asarray(faces)
         if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._array import x_or_y_helper, row_norms, unit
+from .._array import height_radius, x_or_y_helper, row_norms, unit
 from ..errors import FitError
 from ._bspline_surface import BSplineSurface
 
@@ -68,14 +68,6 @@ def _axis_frame(x: np.ndarray, origin: np.ndarray, d: np.ndarray, perp: np.ndarr
 
 def _points(points) -> np.ndarray:
     return np.atleast_2d(np.asarray(points, dtype=np.float64))
-
-
-def _axial_radial(points: np.ndarray, origin: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Height along ``axis`` and distance to the axis line of each point."""
-    w = points - origin
-    h = w @ axis
-    rho = np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
-    return h, rho
 
 
 class _Axial:
@@ -137,7 +129,7 @@ class Cylinder(_Axial):
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance (n,), positive outside."""
-        _, rho = _axial_radial(np.asarray(points, dtype=float), self.axis_point, self.axis_dir)
+        _, rho = height_radius(np.asarray(points, dtype=float), self.axis_point, self.axis_dir)
         return rho - self.radius
 
 
@@ -151,7 +143,7 @@ class Cylinder(_Axial):
 def cone_distance(points: np.ndarray, apex: np.ndarray, axis: np.ndarray, half_angle: float) -> np.ndarray:
     """Signed distance to the nappe of a cone opening from ``apex`` along ``axis`` (positive outside)."""
     w = points - apex
-    h, rho = _axial_radial(points, apex, axis)
+    h, rho = height_radius(points, apex, axis)
     s, c = np.sin(half_angle), np.cos(half_angle)
     across = rho * c - h * s
     along = rho * s + h * c  # position along the generator; < 0 means the apex is the closest point
@@ -194,7 +186,7 @@ class Torus(_Axial):
 
     def distance(self, points: np.ndarray) -> np.ndarray:
         """Signed distance (n,) to the tube, positive outside it."""
-        h, rho = _axial_radial(np.asarray(points, dtype=float), self.center, self.axis_dir)
+        h, rho = height_radius(np.asarray(points, dtype=float), self.center, self.axis_dir)
         return np.hypot(rho - self.major_radius, h) - self.minor_radius
 
 

@@ -28,7 +28,8 @@ import numpy as np
 from ..errors import FitError
 from ._noise import estimate_normals
 from ._trf import lm_plain, trf_soft_l1
-from .._array import as_points, col_means, col_sums, columns as _columns, cross3, extent, perpendicular_frame, row_norms
+from .._array import (as_points, col_means, col_sums, columns as _columns, cross3, extent, height_radius,
+                      perpendicular_frame, row_norms)
 from ._geometry import Cone, Cylinder, Plane, Sphere, Torus, cone_distance
 from ._types import HUGE, MAD_TO_SIGMA, SurfaceFit, deviation_stats, median as _median, percentile as _percentile, within_tolerance
 
@@ -546,7 +547,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     if axis is None:
         return _failed("torus", len(pts), "degenerate start (normal lines meet no common line)")
     c0, d0 = axis
-    h, rho = _rho_z(q, c0, d0)
+    h, rho = height_radius(q, c0, d0)
     circle = _circle_2d(_columns(rho, h))
     if circle is None or circle[1] > HUGE * size:
         return _failed("torus", len(pts), "degenerate start (no curvature in the (ρ, z) half-plane)")
@@ -554,7 +555,7 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
     c0 = c0 + z0 * d0
     e1, e2 = perpendicular_frame(d0)
 
-    # _direction, _rho_z, _direction_jac and _radial inlined, the Jacobian filled in place: the same operations in the
+    # _direction, height_radius, _direction_jac and _radial inlined, the Jacobian filled in place: the same operations in the
     # same order (the same floats), called ~100 times per fit on ~10 exact vertices, where each call is its overhead
     def fun(x, q):
         d = d0 + x[0] * e1 + x[1] * e2
@@ -606,9 +607,3 @@ def fit_torus(points, normals=None, *, tolerance: float | None = None, scale: fl
         return _failed("torus", len(pts), f"spindle torus (major {big:.3g} < minor {small:.3g}) is not supported")
     params = {"center": _vec(center), "axis_dir": _vec(d), "major_radius": big, "minor_radius": small}
     return _finish("torus", params, Torus(center, d, big, small), pts, tolerance)
-
-
-def _rho_z(q: np.ndarray, c: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    w = q - c
-    h = w @ d
-    return h, np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))

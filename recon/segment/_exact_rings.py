@@ -27,6 +27,7 @@ import numpy as np
 
 from scipy.spatial import cKDTree
 
+from .._array import height_radius
 from ..fit import surface_normals
 from ._exact_enclosed import components
 from ._exact_kinks import shortest_height
@@ -38,17 +39,10 @@ __all__ = ["RING_SPREAD", "flat_rings", "split_undrawn_tori", "three_ring_tori"]
 RING_SPREAD = 10.0
 
 
-def _height_radius(V: np.ndarray, center: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each point's height along the axis through ``center`` along ``axis`` and its distance from it."""
-    w = V - center
-    h = w @ axis
-    return h, np.sqrt(np.maximum(np.einsum("ij,ij->i", w, w) - h * h, 0.0))
-
-
 def _ring_ids(V: np.ndarray, center: np.ndarray, axis: np.ndarray, spread: float) -> np.ndarray:
     """The ring of each of the points ``V`` about the axis through ``center`` along ``axis`` (0, 1, …): points whose
     (height, radius) lie within ``spread`` of each other, chained."""
-    hr = np.c_[_height_radius(V, center, axis)]
+    hr = np.c_[height_radius(V, center, axis)]
     ab = cKDTree(hr).query_pairs(spread, output_type="ndarray")
     return np.unique(components(len(hr), ab[:, 0], ab[:, 1], np.ones(len(hr), bool)), return_inverse=True)[1]
 
@@ -96,7 +90,7 @@ def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarra
     meridian arc the points span."""
     c, a, R, r = meridian
     w = P - c
-    h, rho = _height_radius(P, c, a)
+    h, rho = height_radius(P, c, a)
     e1, e2 = _frame(a)
     k = int(ring.max()) + 1
     psi, bounds = np.empty(k), []
@@ -275,7 +269,7 @@ def flat_rings(V: np.ndarray, F: np.ndarray, labels: np.ndarray, fits: dict, ato
             tris = order[bounds[q]:bounds[q + 1]]
             if not (labels[tris] == p).all():
                 continue
-            h, rho = _height_radius(V[np.unique(F[tris])], c, a)
+            h, rho = height_radius(V[np.unique(F[tris])], c, a)
             # one height to the vertices' round-off (each within eps); mirrored radii to theirs too
             found += bool(np.ptp(h) <= 2 * eps and abs(rho.min() + rho.max() - 2 * f.params["major_radius"]) > 2 * eps)
     if not found:
