@@ -28,7 +28,7 @@ from ._exact_crease import creased_note
 from ._exact_enclosed import enclosed_free_form
 from ._exact_freeform import impossible_types
 from ._exact_gate import coplanar_pairs, exact_tessellation, tri_planes
-from ._exact_kinks import kinks as _kinks
+from ._exact_kinks import kinks as _kinks, tangent_misses
 from ._exact_loose import CHAIN_GROWTH, chain, held_slack, long_edge_neighbours
 from ._exact_memo import Failures, per_vertex, question
 from ._exact_merge import merge_curved
@@ -676,9 +676,12 @@ def exact_faces(mesh: Mesh, tolerance: float, atoms: np.ndarray | None = None) -
     for _ in range(ENCLOSED_ROUNDS):
         if not (loose.any() or any(f.type == "bspline" for f in fits.values())):
             break
-        whole = enclosed_free_form(labels, [fits[p].type for p in range(len(fits))], pairs,
-                                   np.einsum("ij,ij->i", *mesh.face_normals[pairs.T]) >= COS_CREASE, loose,
-                                   lambda tris: _bspline_through(V, F, tris, tolerance))
+        smooth = np.einsum("ij,ij->i", *mesh.face_normals[pairs.T]) >= COS_CREASE
+        # judged at the run's tolerance, the loosest a fit's tilt can be: a true tangent face is never taken for a kink
+        whole = enclosed_free_form(labels, [fits[p].type for p in range(len(fits))], pairs, smooth, loose,
+                                   lambda tris: _bspline_through(V, F, tris, tolerance),
+                                   tangent_misses(mesh, pairs, labels, fits, max(tolerance, eps), smooth,
+                                                  frozenset(KIND_PARAMS)))
         if not whole:
             break
         labels, fits = _relabelled(labels, fits, whole)

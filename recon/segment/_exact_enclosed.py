@@ -6,9 +6,10 @@ hundreds of small coincidental curved faces there, and the single triangles betw
 (a loft's wall: bench/exact.md). The faces that are not proven planes and that border, across smooth
 edges, only the free-form pieces (loose single triangles and B-spline faces) and the planes these border are enclosed by the free-form surface:
 they are joined with it, and the whole is one face when a B-spline through all its vertices holds them within the
-run's tolerance. A true analytic face tangent to some other face beside the free-form one is never enclosed, and a
-plane of more than two triangles is taken only when the free-form pieces surround it across smooth edges alone (a CAD
-export draws a free-form face with hardly any flat pair; a plane face of a part meets some other face or a crease).
+run's tolerance. A true analytic face tangent to some other face beside the free-form one is never enclosed (a
+curved piece meeting a plane at a kink is no such face: a blend's coincidental piece beside the plane it is tangent
+to), and a plane of more than two triangles is taken only when the free-form pieces surround it across smooth
+edges alone (a CAD export draws a free-form face with hardly any flat pair; a plane face of a part meets some other face or a crease).
 numpy/scipy only; the B-spline is fitted by the caller's ``fit_piece``.
 """
 
@@ -30,7 +31,8 @@ def components(k: int, a: np.ndarray, b: np.ndarray, keep: np.ndarray) -> np.nda
 
 
 def enclosed_free_form(labels: np.ndarray, kinds: list, pairs: np.ndarray, smooth: np.ndarray, loose: np.ndarray,
-                       fit_piece: Callable[[np.ndarray], Any]) -> list[tuple[np.ndarray, Any]]:
+                       fit_piece: Callable[[np.ndarray], Any], kinked: np.ndarray | None = None
+                       ) -> list[tuple[np.ndarray, Any]]:
     """The free-form faces found whole: ``(triangles, fit)`` for each group of faces a B-spline holds.
 
     Parameters
@@ -48,6 +50,9 @@ def enclosed_free_form(labels: np.ndarray, kinds: list, pairs: np.ndarray, smoot
     fit_piece : callable
         ``fit_piece(triangles)``: a B-spline fit through their vertices (truthy when it holds them within the
         tolerance) or None.
+    kinked : (e,) bool, optional
+        The smooth pairs where a curved face meets a plane at a kink, not tangentially: a coincidental piece of a
+        blend beside the plane the blend is tangent to, which no true face tangent to that plane would show.
     """
     k = len(kinds)
     count = np.bincount(labels, minlength=k)
@@ -66,13 +71,15 @@ def enclosed_free_form(labels: np.ndarray, kinds: list, pairs: np.ndarray, smoot
     rim[a[seed[b] & proven[a]]] = True
     cut = (a != b) & smooth
     a, b = np.r_[a[cut], b[cut]], np.r_[b[cut], a[cut]]  # smooth face adjacency, both ways
+    kink = np.zeros(len(a), bool) if kinked is None else np.r_[kinked[cut], kinked[cut]]
     candidate = ~seed & ~proven
     # a group of candidate faces joins the free-form pieces when every face it borders smoothly is one of them or a
     # plane they border
     comp = components(k, a, b, candidate)
     outside = candidate[a] & ~candidate[b]
     bad = np.zeros(k, bool)
-    bad[comp[a[outside & ~seed[b] & ~rim[b]]]] = True
+    # (a plane met at a kink does not count: the group is a blend's pieces, not a face tangent to it)
+    bad[comp[a[outside & ~seed[b] & ~rim[b] & ~kink]]] = True
     touches = np.zeros(k, bool)
     touches[comp[a[outside & seed[b]]]] = True
     joined = seed | (candidate & touches[comp] & ~bad[comp])
