@@ -18,12 +18,14 @@ __all__ = ["merge_curved"]
 
 
 def _neighbours(at: Any, members: list, owner: np.ndarray, i: int) -> list:
-    """The regions sharing an edge with region ``i`` across no crease (at least one of the atom pairs smooth)."""
+    """The regions sharing an edge with region ``i``, across a crease of the mesh too: a fillet drawn one or two
+    triangles across turns by more than a crease between its own pieces, and only one surface holding both to
+    round-off joins them (two faces of a part that meet at a crease lie on no common surface)."""
     out = set()
     for a in members[i]:
         for b in at.nbrs[a]:
             o = int(owner[b])
-            if o >= 0 and o != i and at.smooth(a, b):
+            if o >= 0 and o != i:
                 out.add(o)
     return sorted(out)
 
