@@ -66,9 +66,8 @@ def tangent_misses(mesh: Any, pairs: np.ndarray, labels: np.ndarray, fits: dict,
     """(e,) bool: the smooth edges where a curved face meets a plane of more than two triangles at a kink: their
     surfaces' normals at the edge's ends turn by more than two fits through points within ``tol`` can tilt (2 tol
     over each face's reach from the edge). A coincidental analytic piece of a blend misses the plane the blend is
-    tangent to (export seeds 151, 164: 700-10,000 times the tilt of round-off); a true face tangent to its plane
-    shows at most 1.7 times that tilt (seeds 6, 20), under 1/30 of this bound where the tolerance is 50 round-offs
-    (bench/exact.md, s42-ff)."""
+    tangent to by hundreds of times the tilt of round-off; a true face tangent to its plane by a few times at most,
+    far under this bound where the tolerance is tens of round-offs (measured: bench/exact.md "s42-ff")."""
     V, F = mesh.vertices, mesh.faces
     count = np.bincount(labels, minlength=len(fits))
     kind = np.array([fits[p].type for p in range(len(fits))])
