@@ -36,7 +36,7 @@ from ._exact_rings import flat_rings, split_undrawn_tori, three_ring_tori
 from ._exact_split import split_atoms
 from ._exact_strips import strip_faces
 from ._exact_turn import drawn_alike, largest_turn
-from ._exact_weak import chord_points as _chord_points, weak_dropped
+from ._exact_weak import chord_points as _chord_points, edge_midpoints, weak_dropped
 
 __all__ = ["ExactFaces", "as_decomposition", "coplanar_pairs", "exact_faces", "exact_tessellation", "grow_curved", "plane_atoms",
            "roundoff"]
@@ -464,7 +464,7 @@ def _on_chords(fit: SurfaceFit, V: np.ndarray, F: np.ndarray, tris: np.ndarray, 
     cone's or a cylinder's ruling) proves a ruled surface that a sphere or torus through the same vertices is not;
     then how many lie on it as closely as its own vertices do (a ruling does; a doubly curved surface holds a short
     edge within round-off only by its sag ℓ²/8R, which its vertices do not show)."""
-    d = np.abs(fit.distance(_chord_points(V, F, tris)[len(tris):]))  # the edge midpoints, not the centroids
+    d = np.abs(fit.distance(edge_midpoints(V, F, tris)))
     own = float(np.abs(fit.distance(V[np.unique(F[tris])])).max())
     return int((d <= eps).sum()), int((d <= own).sum())
 

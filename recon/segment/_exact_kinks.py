@@ -17,12 +17,30 @@ import numpy as np
 
 from ..fit import surface_normals
 
-__all__ = ["kinks", "shortest_height", "tangent_misses"]
+__all__ = ["fit_tilt", "kinks", "roundoff_tilt", "shortest_height", "tangent_misses"]
 
 
 def shortest_height(P: np.ndarray) -> float:
     """A triangle's shortest height: the lever its vertices' round-off tilts its normal by."""
     return float(np.linalg.norm(np.cross(P[1] - P[0], P[2] - P[0])) / np.linalg.norm(P - P[[1, 2, 0]], axis=1).max())
+
+
+def roundoff_tilt(P: np.ndarray, eps: float) -> float:
+    """How far round-off ``eps`` at its corners may tilt a triangle ``P``'s normal: 2 eps over its shortest height."""
+    return 2 * eps / shortest_height(P)
+
+
+def fit_tilt(face: np.ndarray, at: np.ndarray, tol: float) -> float:
+    """How far a surface fitted through the points ``face``, each off it by up to ``tol``, may tilt its normal at the
+    point ``at``: 2 tol over the face's reach from there."""
+    return 2 * tol / np.linalg.norm(face - at, axis=1).max()
+
+
+def _face_points(V: np.ndarray, F: np.ndarray, labels: np.ndarray, cache: dict, p: int) -> np.ndarray:
+    """The vertices of face ``p``, found once per face (``cache``)."""
+    if p not in cache:
+        cache[p] = V[np.unique(F[labels == p])]
+    return cache[p]
 
 
 def kinks(mesh: Any, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: float, loose: np.ndarray, tol: float,
@@ -44,16 +62,16 @@ def kinks(mesh: Any, pairs: np.ndarray, labels: np.ndarray, fits: dict, eps: flo
     near = (la != lb) & (small_plane[la] | small_plane[lb])
     near &= np.einsum("ij,ij->i", n[pairs[:, 0]], n[pairs[:, 1]]) >= cos_crease
     found = 0
+    faces: dict = {}
     for (t, u), e in zip(pairs[near], ends[near]):
         a, b = int(labels[t]), int(labels[u])
         for tri, p, c in ((t, a, b), (u, b, a)):
             if not small_plane[p] or fits[c].type not in curved:
                 continue
             turn = np.arccos(np.clip(np.abs(surface_normals(fits[c], V[e]) @ n[tri]), 0.0, 1.0)).max()
-            bound = 2 * eps / shortest_height(V[F[tri]])
+            bound = roundoff_tilt(V[F[tri]], eps)
             if loose[c]:
-                reach = np.linalg.norm(V[np.unique(F[labels == c])] - V[e].mean(axis=0), axis=1).max()
-                bound = max(bound, 2 * tol / reach)
+                bound = max(bound, fit_tilt(_face_points(V, F, labels, faces, c), V[e].mean(axis=0), tol))
             found += bool(turn > bound)
     if not found:
         return []
@@ -79,16 +97,13 @@ def tangent_misses(mesh: Any, pairs: np.ndarray, labels: np.ndarray, fits: dict,
     if not ask.any():
         return out
     ends = np.asarray(mesh.face_adjacency_edges, dtype=np.int64).reshape(-1, 2)
-    verts: dict = {}
+    faces: dict = {}
     for i in np.flatnonzero(ask).tolist():
         p, q = (int(la[i]), int(lb[i])) if is_curved[la[i]] else (int(lb[i]), int(la[i]))
         e = V[ends[i]]
-        for f in (p, q):
-            if f not in verts:
-                verts[f] = V[np.unique(F[labels == f])]
         turn = np.arccos(np.clip(np.abs(np.einsum("ij,ij->i", surface_normals(fits[p], e),
                                                   surface_normals(fits[q], e))), 0.0, 1.0)).max()
         mid = e.mean(axis=0)
-        bound = sum(2 * tol / np.linalg.norm(verts[f] - mid, axis=1).max() for f in (p, q))
+        bound = sum(fit_tilt(_face_points(V, F, labels, faces, f), mid, tol) for f in (p, q))
         out[i] = bool(turn > bound)
     return out

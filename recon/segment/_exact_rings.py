@@ -30,7 +30,7 @@ from scipy.spatial import cKDTree
 from .._array import height_radius
 from ..fit import surface_normals
 from ._exact_enclosed import components
-from ._exact_kinks import shortest_height
+from ._exact_kinks import roundoff_tilt
 
 __all__ = ["RING_SPREAD", "flat_rings", "split_undrawn_tori", "three_ring_tori"]
 
@@ -113,8 +113,8 @@ def _undrawn(P: np.ndarray, ring: np.ndarray, meridian) -> tuple[bool, np.ndarra
 
 def _tilts(V: np.ndarray, F: np.ndarray, t: np.ndarray, u: np.ndarray, eps: float) -> np.ndarray:
     """How far round-off may tilt two fitted surfaces' normals apart across each edge between triangles ``t`` and
-    ``u``: 2 eps over the shortest height of the triangle on each side."""
-    return np.array([2 * eps / shortest_height(V[F[x]]) + 2 * eps / shortest_height(V[F[y]]) for x, y in zip(t, u)])
+    ``u``: the round-off tilt of the triangle on each side."""
+    return np.array([roundoff_tilt(V[F[x]], eps) + roundoff_tilt(V[F[y]], eps) for x, y in zip(t, u)])
 
 
 def _tangent_to_neighbours(V: np.ndarray, F: np.ndarray, pairs: np.ndarray, ends: np.ndarray, labels: np.ndarray,

@@ -10,13 +10,18 @@ import numpy as np
 from ..fit import SurfaceFit
 from ._exact_rings import undrawn_torus
 
-__all__ = ["chord_points", "weak_dropped", "WEAK_ATOMS", "WEAK_SAG_MARGIN"]
+__all__ = ["chord_points", "edge_midpoints", "weak_dropped", "WEAK_ATOMS", "WEAK_SAG_MARGIN"]
+
+
+def edge_midpoints(V: np.ndarray, F: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """The midpoints of the triangles' edges (each edge once per triangle it bounds)."""
+    P = V[F[tris]]
+    return np.concatenate([(P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
 
 
 def chord_points(V: np.ndarray, F: np.ndarray, tris: np.ndarray) -> np.ndarray:
     """The centroids and edge midpoints of triangles: where a chord lies farthest from the surface it spans."""
-    P = V[F[tris]]
-    return np.concatenate([P.mean(axis=1), (P[:, 0] + P[:, 1]) / 2, (P[:, 1] + P[:, 2]) / 2, (P[:, 2] + P[:, 0]) / 2])
+    return np.concatenate([V[F[tris]].mean(axis=1), edge_midpoints(V, F, tris)])
 
 
 #: A curved face of fewer atoms than this (a fillet one or two strips wide) is told from planes meeting at an angle
@@ -27,10 +32,12 @@ WEAK_ATOMS = 4
 WEAK_SAG_MARGIN = 1.5
 
 
-def _sag_of(at: Any, region: list, fit: SurfaceFit) -> float:
-    V, F = at.mesh.vertices, at.mesh.faces
+def _sags(at: Any, region: list, fits: tuple) -> tuple[float, ...]:
+    """How far the region's chords lie from each of ``fits`` (one fit given twice is measured once)."""
     tris = np.concatenate([at.tris[a] for a in region])
-    return float(np.max(np.abs(fit.distance(chord_points(V, F, tris)))))
+    P = chord_points(at.mesh.vertices, at.mesh.faces, tris)
+    seen: dict = {}
+    return tuple(seen.setdefault(id(f), float(np.max(np.abs(f.distance(P))))) for f in fits)
 
 
 def weak_dropped(at: Any, regions: list, notes: list, eps: float) -> list:
@@ -40,7 +47,7 @@ def weak_dropped(at: Any, regions: list, notes: list, eps: float) -> list:
     meeting at a small angle, whose vertices a cylinder also holds (a polygon's two sides lie on the circle through
     their corners). A weak region is judged by the nearer of its two surfaces; each kept one gets its best fit when that
     passes, else its seed's."""
-    sags = [(_sag_of(at, r, f), _sag_of(at, r, b)) for r, f, b in regions]
+    sags = [_sags(at, r, (f, b)) for r, f, b in regions]
     strong = [sb for (r, _, b), (_, sb) in zip(regions, sags)  # a strong region's face is its best fit
               if len(r) >= WEAK_ATOMS and not undrawn_torus(at.mesh.vertices[at.points(r)[0]], b, eps)]
     limit = WEAK_SAG_MARGIN * max(strong) if strong else 0.0
